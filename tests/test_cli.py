@@ -1,0 +1,88 @@
+"""The `beltjax span` command: outputs, and one-line errors for bad input."""
+
+import json
+import math
+import pathlib
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from beltjax.cli import main
+
+GOOD = ["span", "--length", "0.67143", "--tension", "100.5", "--EA", "111190", "--EI", "0.034",
+        "--rhoA", "0.12166", "--elements", "8"]
+
+
+def _with(flag, value):
+    args = list(GOOD)
+    i = args.index(flag)
+    args[i + 1] = value
+    return args
+
+
+def _without(flag):
+    args = list(GOOD)
+    i = args.index(flag)
+    del args[i:i + 2]
+    return args
+
+
+BAD = [
+    (_with("--EA", "-1"), "--EA"), (_with("--EA", "0"), "--EA"),
+    (_with("--EI", "-0.03"), "--EI"), (_with("--EI", "0"), "--EI"),
+    (_with("--rhoA", "0"), "--rhoA"), (_with("--rhoA", "-2"), "--rhoA"),
+    (_with("--length", "0"), "--length"), (_with("--length", "-0.5"), "--length"),
+    (_with("--tension", "0"), "--tension"), (_with("--tension", "-100"), "--tension"),
+    (_with("--tension", "abc"), "--tension"), (_with("--EA", "1e5N"), "--EA"),
+    (_with("--tension", "nan"), "--tension"), (_with("--EI", "inf"), "--EI"),
+    (_with("--elements", "1"), "--elements"), (_with("--elements", "0"), "--elements"),
+    (_with("--elements", "2.5"), "--elements"), (_without("--EA"), "--EA"),
+    (_without("--length"), "--length"), (GOOD + ["--bc", "welded"], "--bc"),
+    (GOOD + ["--speed", "fast"], "--speed"), ([], "command"),
+]
+
+
+@pytest.mark.parametrize("argv,name", BAD, ids=[" ".join(a[-2:]) if a else "empty" for a, _ in BAD])
+def test_bad_input_gives_one_line_naming_the_argument(argv, name, capsys, tmp_path):
+    code = main(argv + ["--out", str(tmp_path)] if argv else argv)
+    err = capsys.readouterr().err.strip()
+    assert code != 0
+    assert len(err.splitlines()) == 1, err
+    assert name in err and err.startswith("beltjax: error:"), err
+    assert "Traceback" not in err
+    assert not (tmp_path / "span.json").exists()
+
+
+def test_span_command_writes_json_plot_and_table(tmp_path, capsys):
+    code = main(GOOD + ["--speed", "10", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0
+    data = json.loads((tmp_path / "span.json").read_text())
+    f = data["frequencies_hz"]
+    assert data["stable"] is True and len(f) == len(data["labels"]) > 10
+    assert f == sorted(f) and all(math.isfinite(x) for x in f)
+    assert all(("transverse" in lab or "longitudinal" in lab) and lab[0].isdigit() for lab in data["labels"])
+    assert data["labels"][0] == "1st transverse"
+    assert (tmp_path / "span_modes.png").stat().st_size > 10_000
+    assert "1st transverse" in out and "critical speed" in out
+
+
+def test_span_command_reports_supercritical_speed(tmp_path, capsys):
+    code = main(GOOD + ["--speed", "40", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    data = json.loads((tmp_path / "span.json").read_text())
+    assert code == 0  # a valid question with an honest answer: the span is unstable
+    assert data["stable"] is False and data["frequencies_hz"] == [] and data["unstable_eigenvalues"]
+    assert "UNSTABLE" in out
+
+
+def test_installed_entry_point_runs(tmp_path):
+    exe = shutil.which("beltjax") or str(pathlib.Path(sys.executable).parent / "beltjax")
+    proc = subprocess.run([exe, *GOOD, "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "1st transverse" in proc.stdout
+    bad = subprocess.run([exe, *_with("--EA", "-5"), "--out", str(tmp_path)], capture_output=True, text=True,
+                         timeout=300)
+    assert bad.returncode != 0 and len(bad.stderr.strip().splitlines()) == 1 and "--EA" in bad.stderr
