@@ -51,6 +51,44 @@ def gyroscopic_eigen(M, G, K):
     return lam, Z[:n, :]
 
 
+@jax.jit
+def _skew_modes(M, G, K):
+    n = M.shape[0]
+    LK = jnp.linalg.cholesky(K)
+    LM = jnp.linalg.cholesky(M)
+    Z = jnp.zeros((n, n))
+    Lb = jnp.block([[LK, Z], [Z, LM]])
+    A = jnp.block([[Z, K], [-K, -G]])
+    X = jax.scipy.linalg.solve_triangular(Lb, A, lower=True)
+    S = jax.scipy.linalg.solve_triangular(Lb, X.T, lower=True).T
+    S = 0.5 * (S - S.T)
+    w, U = jnp.linalg.eigh(1j * S)  # S v = i omega v  <=>  (i S) v = -omega v
+    omega = -w[:n][::-1]  # the n negative w, as ascending omega > 0
+    U = U[:, :n][:, ::-1]
+    Zs = jax.scipy.linalg.solve_triangular(Lb.T.astype(U.dtype), U, lower=False)
+    ok = jnp.all(jnp.isfinite(LK)) & jnp.all(omega > 0)
+    return ok, omega, Zs[:n, :]
+
+
+def gyroscopic_modes(M, G, K):
+    """Modes of M x'' + G x' + K x = 0 (G skew): ``(stable, freqs_hz, shapes, unstable)``.
+
+    While K is positive definite the system is stable and the structured route is
+    used: with B = diag(K, M) = L L^T the pencil becomes the real skew matrix
+    S = L^-1 [[0, K], [-K, -G]] L^-T, whose eigenvalues i omega come from the
+    Hermitian ``eigh`` of i S (twice as fast as a general eigen-solver, and the
+    eigenvalues are exactly imaginary).  Otherwise (past the critical speed, rigid
+    body modes) the companion form and a general eigen-solver decide stability.
+    """
+    import numpy as np
+
+    ok, omega, shapes = _skew_modes(M, G, K)
+    if bool(ok):
+        return True, np.asarray(omega) / (2 * np.pi), np.asarray(shapes), np.zeros(0, complex)
+    lam, Z = gyroscopic_eigen(M, G, K)
+    return split_gyroscopic(lam, Z)
+
+
 def is_stable_omega2(omega2):
     """True when no squared frequency is negative beyond round-off."""
     scale = jnp.max(jnp.abs(omega2))

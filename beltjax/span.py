@@ -178,24 +178,20 @@ class SpanResult:
         }
 
 
-def _label_modes(shapes, M_free, free, n_coords):
+def _label_modes(shapes, M_free, free):
     """Transverse share (mass-weighted, y coordinates) and labels of each mode."""
-    is_y = (free % 2 == 1)
-    Mabs = np.asarray(M_free)
-    shares, labels = [], []
-    counts = {"transverse": 0, "longitudinal": 0}
-    for k in range(shapes.shape[1]):
-        phi = shapes[:, k]
-        py = np.where(is_y, phi, 0)
-        px = np.where(is_y, 0, phi)
-        ey = float(np.real(np.conj(py) @ Mabs @ py))
-        ex = float(np.real(np.conj(px) @ Mabs @ px))
-        share = ey / (ey + ex) if ey + ex > 0 else 0.0
+    is_y = (free % 2 == 1)[:, None]
+    M = np.asarray(M_free)
+    py, px = np.where(is_y, shapes, 0), np.where(is_y, 0, shapes)
+    ey = np.real(np.sum(np.conj(py) * (M @ py), axis=0))
+    ex = np.real(np.sum(np.conj(px) * (M @ px), axis=0))
+    shares = np.where(ey + ex > 0, ey / np.where(ey + ex > 0, ey + ex, 1.0), 0.0)
+    labels, counts = [], {"transverse": 0, "longitudinal": 0}
+    for share in shares:
         kind = "transverse" if share >= 0.5 else "longitudinal"
         counts[kind] += 1
-        shares.append(share)
         labels.append(f"{modal.ordinal(counts[kind])} {kind}")
-    return np.array(shares), labels
+    return shares, labels
 
 
 def analyse_span(
@@ -236,9 +232,8 @@ def analyse_span(
             freqs, V = np.zeros(0), np.zeros((len(free), 0))
             unstable = np.sqrt(-omega2[omega2 < 0].astype(complex)).real.astype(complex)
     else:
-        lam_all, Z = modal.gyroscopic_eigen(mats["M"], mats["G"], mats["K"])
-        stable, freqs, V, unstable = modal.split_gyroscopic(lam_all, Z)
-    shares, labels = _label_modes(V, mats["M"], free, n_coords)
+        stable, freqs, V, unstable = modal.gyroscopic_modes(mats["M"], mats["G"], mats["K"])
+    shares, labels = _label_modes(V, mats["M"], free)
     shapes = np.zeros((n_coords, V.shape[1]))
     if V.shape[1]:
         Vr = np.real(V) if np.iscomplexobj(V) else V

@@ -90,6 +90,7 @@ def machine_info() -> dict:
         "x64": bool(jax.config.jax_enable_x64),
         "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS"),
         "git_commit": _git_commit(),
+        "loadavg_1_5_15min": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
     }
 
 
@@ -97,7 +98,8 @@ def machine_line(info: dict) -> str:
     return (
         f"{info['cpu_model']}, {info['cpu_count']} cores, {info['memory_gib']} GiB, "
         f"jax {info['jax']} ({info['jax_backend']}, x64={info['x64']}), numpy {info['numpy']}, "
-        f"scipy {info['scipy']}, OPENBLAS_NUM_THREADS={info['OPENBLAS_NUM_THREADS']}, {info['date']}"
+        f"scipy {info['scipy']}, OPENBLAS_NUM_THREADS={info['OPENBLAS_NUM_THREADS']}, {info['date']}, "
+        f"load avg {info['loadavg_1_5_15min'][0]:.2f}"
     )
 
 
@@ -138,6 +140,37 @@ def time_steady(fn, *args, repeats: int = 31, min_sample_s: float = 2e-3, max_to
         "max_s": max(samples),
         "samples": len(samples),
         "calls_per_sample": number,
+    }
+
+
+def time_interleaved(fns: dict, rounds: int = 21, min_sample_s: float = 2e-3, max_total_s: float = 4.0) -> dict:
+    """Steady-state times of several zero-argument functions, sampled round-robin.
+
+    Like ``time_steady`` but one sample of each function per round, so a
+    transient load on the machine hits all of them alike (fair ratios).
+    Returns {name: stats}.
+    """
+    numbers = {}
+    for name, fn in fns.items():
+        block(fn())
+        t0 = time.perf_counter()
+        block(fn())
+        numbers[name] = max(1, int(math.ceil(min_sample_s / max(time.perf_counter() - t0, 1e-7))))
+    samples = {name: [] for name in fns}
+    start = time.perf_counter()
+    for r in range(rounds):
+        for name, fn in fns.items():
+            n = numbers[name]
+            t0 = time.perf_counter()
+            for _ in range(n):
+                block(fn())
+            samples[name].append((time.perf_counter() - t0) / n)
+        if r >= 4 and time.perf_counter() - start > max_total_s:
+            break
+    return {
+        name: {"median_s": statistics.median(s), "min_s": min(s), "max_s": max(s), "samples": len(s),
+               "calls_per_sample": numbers[name]}
+        for name, s in samples.items()
     }
 
 
