@@ -1,0 +1,622 @@
+"""Scene files: reading and validating TOML drive descriptions into pytrees.
+
+The format is the contract of ``DESIGN.md`` ("Scene files"); this module adds
+only optional keys.  Units SI, angles in degrees where a key ends in ``_deg``,
+speeds in rpm where it ends in ``_rpm``.  Tables and keys:
+
+``[belt]``      EA (N), EI (N m^2), rhoA (kg/m); exactly one of static_tension (N)
+                and length (unstretched, m).  Optional: CA (N s, viscous axial
+                damping parameter of the thesis, span damping c = CA / L), default 0.
+``[[pulley]]``  name, center [x, y] (m), radius (m), mass (kg), inertia (kg m^2);
+                optional driven (bool, default false), speed_rpm (driven pulleys
+                only, default 0).  Optional additions: acceleration_rpm_per_s and
+                fluctuation_amplitude_deg / fluctuation_frequency_hz (driven
+                pulleys only: theta(t) = theta0 + w t + a t^2 / 2 + A sin(2 pi f t),
+                thesis eq. 4.62), cm_offset [x, y] (m, centre-of-mass offset in the
+                pulley frame, the "unbalance" effect, thesis eq. 4.5),
+                bearing_damping (N m s/rad).  All default to 0.
+``[tensioner]`` optional; pivot [x, y] (m), arm_length (m), pulley_radius (m),
+                arm_mass (kg), arm_inertia (kg m^2, about the arm's centre of mass),
+                pulley_mass (kg), pulley_inertia (kg m^2), spring_stiffness
+                (N m/rad), spring_preload_deg (the arm angle at zero spring moment).
+                Optional additions: arm_angle_deg (initial guess / installed arm
+                angle, CCW from +x, pivot -> idler), arm_cm_distance (m, pivot to
+                the arm's centre of mass along the arm, default 0), damping
+                (N m s/rad at the pivot, default 0).  Its idler is "tensioner" in
+                the route.
+``[route]``     order (names in the belt's direction of travel), back_side
+                (default []), direction ("cw" default, or "ccw").
+``[model]``     fidelity ("ancf" default, or "rotational"), elements_per_span
+                (int >= 1, default 16), effects (subset of :data:`EFFECTS`,
+                default []), optional bending ("linear" default, or "exact").
+Top level:      optional ``description`` (string).
+
+Every problem raises :class:`SceneError` (a ``ValueError``) with a one-line
+message that starts with the key path, e.g. ``pulley[1].radius: must be > 0,
+got -0.01`` (``pulley[i]`` counts the ``[[pulley]]`` tables from 0 in file
+order); file-level problems start with the file name.
+
+The parsed :class:`Scene` is an equinox Module: every number is a float64 jax
+array leaf (so ``jax.grad`` / ``eqx.filter_grad`` reach centres, radii,
+stiffnesses...), names and switches are static fields.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import geometry
+from beltjax.ancf import BENDING_MODELS
+
+#: effects a scene may ask for in ``model.effects`` (only listed ones are simulated)
+EFFECTS = (
+    "transport",  # axially moving belt: gyroscopic + centrifugal terms
+    "gravity",  # weight of belt, pulleys and tensioner
+    "belt_damping",  # viscous axial damping of the belt (belt.CA)
+    "bearing_damping",  # viscous damping at pulley bearings (pulley.bearing_damping)
+    "tensioner_damping",  # viscous damping at the tensioner pivot (tensioner.damping)
+    "unbalance",  # pulley centre-of-mass offsets (pulley.cm_offset)
+    "speed_fluctuation",  # harmonic fluctuation of a driven pulley's angle
+)
+FIDELITIES = ("ancf", "rotational")
+DIRECTIONS = geometry.DIRECTIONS
+TENSIONER = "tensioner"  # the idler's name in route.order (reserved)
+
+
+class SceneError(ValueError):
+    """Invalid scene: one-line message starting with the key path (``key`` attribute)."""
+
+    def __init__(self, message: str, key: str = "", source: str = ""):
+        super().__init__(" ".join(str(message).split()))
+        self.key = key
+        self.source = source
+
+
+# --------------------------------------------------------------------------- pytrees
+
+
+class Belt(eqx.Module):
+    """Belt section and installation (float64 array leaves).
+
+    EA (N), EI (N m^2), rhoA (kg/m), CA (N s); exactly one of static_tension (N)
+    and length (unstretched belt length, m) is an array, the other None.
+    """
+
+    EA: jax.Array
+    EI: jax.Array
+    rhoA: jax.Array
+    static_tension: jax.Array | None
+    length: jax.Array | None
+    CA: jax.Array
+
+
+class Pulley(eqx.Module):
+    """A pulley on a fixed bearing.
+
+    center (2,) m, radius m, mass kg, inertia kg m^2, speed_rpm rpm,
+    acceleration_rpm_per_s rpm/s, fluctuation_amplitude_deg deg,
+    fluctuation_frequency_hz Hz, cm_offset (2,) m, bearing_damping N m s/rad.
+    """
+
+    name: str = eqx.field(static=True)
+    center: jax.Array
+    radius: jax.Array
+    mass: jax.Array
+    inertia: jax.Array
+    driven: bool = eqx.field(static=True)
+    speed_rpm: jax.Array
+    acceleration_rpm_per_s: jax.Array
+    fluctuation_amplitude_deg: jax.Array
+    fluctuation_frequency_hz: jax.Array
+    cm_offset: jax.Array
+    bearing_damping: jax.Array
+
+
+class Tensioner(eqx.Module):
+    """Automatic tensioner: an arm on a pivot carrying an idler.
+
+    pivot (2,) m, arm_length m, pulley_radius m, arm_mass kg, arm_inertia kg m^2
+    (about the arm's centre of mass), pulley_mass kg, pulley_inertia kg m^2,
+    spring_stiffness N m/rad, spring_preload_deg deg, arm_angle_deg deg or None,
+    arm_cm_distance m, damping N m s/rad.
+    """
+
+    pivot: jax.Array
+    arm_length: jax.Array
+    pulley_radius: jax.Array
+    arm_mass: jax.Array
+    arm_inertia: jax.Array
+    pulley_mass: jax.Array
+    pulley_inertia: jax.Array
+    spring_stiffness: jax.Array
+    spring_preload_deg: jax.Array
+    arm_angle_deg: jax.Array | None
+    arm_cm_distance: jax.Array
+    damping: jax.Array
+
+    def idler_center(self, theta):
+        """Idler centre (m), shape (2,), at arm angle theta (rad, CCW from +x)."""
+        return geometry.tensioner_idler_center(self.pivot, self.arm_length, theta)
+
+
+class Route(eqx.Module):
+    """Belt route (static): order of travel, back-side pulleys, wrap direction."""
+
+    order: tuple[str, ...] = eqx.field(static=True)
+    back_side: tuple[str, ...] = eqx.field(static=True)
+    direction: str = eqx.field(static=True)
+
+    @property
+    def senses(self) -> np.ndarray:
+        """Wrap sense per route entry: +1 CCW, -1 CW (numpy ints)."""
+        return geometry.wrap_senses(self.order, self.back_side, self.direction)
+
+
+class Model(eqx.Module):
+    """Model choices (static)."""
+
+    fidelity: str = eqx.field(static=True)
+    elements_per_span: int = eqx.field(static=True)
+    effects: tuple[str, ...] = eqx.field(static=True)
+    bending: str = eqx.field(static=True)
+
+    def has(self, effect: str) -> bool:
+        """Whether ``effect`` (one of :data:`EFFECTS`) is switched on."""
+        if effect not in EFFECTS:
+            raise ValueError(f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
+        return effect in self.effects
+
+
+class Scene(eqx.Module):
+    """A validated drive: belt, pulleys (file order), optional tensioner, route, model."""
+
+    belt: Belt
+    pulleys: tuple[Pulley, ...]
+    tensioner: Tensioner | None
+    route: Route
+    model: Model
+    source: str = eqx.field(static=True, default="<dict>")
+    description: str = eqx.field(static=True, default="")
+
+    def pulley(self, name: str) -> Pulley:
+        """The pulley called ``name`` (KeyError if none)."""
+        for p in self.pulleys:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    def layout(self, arm_angle=None):
+        """Centres (n, 2) m and radii (n,) m in route order (differentiable).
+
+        arm_angle: tensioner arm angle (rad, CCW from +x); None uses
+        ``tensioner.arm_angle_deg`` (ValueError if that is not given either).
+        Ignored without a tensioner.
+        """
+        centers, radii = [], []
+        for name in self.route.order:
+            if name == TENSIONER:
+                t = self.tensioner
+                if arm_angle is None:
+                    if t.arm_angle_deg is None:
+                        raise ValueError("tensioner.arm_angle_deg: not given; pass arm_angle (rad)")
+                    arm_angle = jnp.deg2rad(t.arm_angle_deg)
+                centers.append(t.idler_center(arm_angle))
+                radii.append(t.pulley_radius)
+            else:
+                p = self.pulley(name)
+                centers.append(p.center)
+                radii.append(p.radius)
+        return jnp.stack(centers), jnp.stack(radii)
+
+    def geometry(self, arm_angle=None, *, check: bool = True) -> geometry.DriveGeometry:
+        """Belt path (:class:`beltjax.geometry.DriveGeometry`) at arm angle ``arm_angle`` (rad)."""
+        centers, radii = self.layout(arm_angle)
+        return geometry.drive_geometry(centers, radii, self.route.senses, names=self.route.order, check=check)
+
+
+# --------------------------------------------------------------------------- readers
+
+
+def _fail(key, msg, source=""):
+    raise SceneError(f"{key}: {msg}", key, source)
+
+
+def _describe(v) -> str:
+    if isinstance(v, bool):
+        return f"a boolean ({str(v).lower()})"
+    if isinstance(v, str):
+        return f"a string ({v!r})"
+    if isinstance(v, dict):
+        return "a table"
+    if isinstance(v, list):
+        return "an array"
+    return f"{type(v).__name__} ({v!r})"
+
+
+class _Table:
+    """A TOML table being read: typed getters, then a check for unknown keys."""
+
+    def __init__(self, data, key: str, source: str, allowed: tuple[str, ...]):
+        if not isinstance(data, dict):
+            _fail(key, f"expected a table, got {_describe(data)}", source)
+        self.data, self.key, self.source, self.allowed = data, key, source, allowed
+        for k in data:
+            if k not in allowed:
+                where = f"in {key}" if key else "at the top level"
+                _fail(self.path(k), f"unknown key (allowed {where}: {', '.join(allowed)})", source)
+
+    def path(self, k):
+        return f"{self.key}.{k}" if self.key else k
+
+    def fail(self, k, msg):
+        _fail(self.path(k), msg, self.source)
+
+    def has(self, k):
+        return k in self.data
+
+    def raw(self, k, required):
+        if k not in self.data:
+            if required:
+                self.fail(k, "missing (required key)")
+            return None
+        return self.data[k]
+
+    def _check_number(self, k, v, what="a number"):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            self.fail(k, f"expected {what}, got {_describe(v)}")
+        if not math.isfinite(v):
+            self.fail(k, f"must be finite, got {v!r}")
+        return float(v)
+
+    def number(self, k, *, required=True, default=None, positive=False, nonnegative=False):
+        v = self.raw(k, required)
+        if v is None:
+            return default
+        x = self._check_number(k, v)
+        if positive and not x > 0:
+            self.fail(k, f"must be > 0, got {v!r}")
+        if nonnegative and not x >= 0:
+            self.fail(k, f"must be >= 0, got {v!r}")
+        return x
+
+    def integer(self, k, *, required=True, default=None, minimum=None):
+        v = self.raw(k, required)
+        if v is None:
+            return default
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(k, f"expected an integer, got {_describe(v)}")
+        if minimum is not None and v < minimum:
+            self.fail(k, f"must be >= {minimum}, got {v!r}")
+        return v
+
+    def vector2(self, k, *, required=True, default=None):
+        v = self.raw(k, required)
+        if v is None:
+            return default
+        if not isinstance(v, list) or len(v) != 2:
+            self.fail(k, f"expected [x, y] (two numbers), got {_describe(v) if not isinstance(v, list) else v!r}")
+        for i, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                self.fail(k, f"expected [x, y] (two numbers), element {i} is {_describe(x)}")
+            if not math.isfinite(x):
+                self.fail(k, f"must be finite, got {v!r}")
+        return [float(x) for x in v]
+
+    def boolean(self, k, *, required=False, default=False):
+        v = self.raw(k, required)
+        if v is None:
+            return default
+        if not isinstance(v, bool):
+            self.fail(k, f"expected true or false, got {_describe(v)}")
+        return v
+
+    def string(self, k, *, required=True, default=None, choices=None):
+        v = self.raw(k, required)
+        if v is None:
+            return default
+        if not isinstance(v, str):
+            self.fail(k, f"expected a string, got {_describe(v)}")
+        if choices is not None and v not in choices:
+            self.fail(k, f"must be one of {', '.join(repr(c) for c in choices)}, got {v!r}")
+        return v
+
+    def strings(self, k, *, required=True, default=None):
+        v = self.raw(k, required)
+        if v is None:
+            return default
+        if not isinstance(v, list):
+            self.fail(k, f"expected an array of strings, got {_describe(v)}")
+        for i, x in enumerate(v):
+            if not isinstance(x, str):
+                self.fail(k, f"expected an array of strings, element {i} is {_describe(x)}")
+        seen = set()
+        for x in v:
+            if x in seen:
+                self.fail(k, f"{x!r} appears twice")
+            seen.add(x)
+        return list(v)
+
+
+def _arr(x):
+    return None if x is None else jnp.asarray(x, dtype=jnp.float64)
+
+
+# --------------------------------------------------------------------------- sections
+
+_TOP_KEYS = ("description", "belt", "pulley", "tensioner", "route", "model")
+_BELT_KEYS = ("EA", "EI", "rhoA", "static_tension", "length", "CA")
+_PULLEY_KEYS = (
+    "name",
+    "center",
+    "radius",
+    "mass",
+    "inertia",
+    "driven",
+    "speed_rpm",
+    "acceleration_rpm_per_s",
+    "fluctuation_amplitude_deg",
+    "fluctuation_frequency_hz",
+    "cm_offset",
+    "bearing_damping",
+)
+_DRIVEN_ONLY = ("speed_rpm", "acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
+_TENSIONER_KEYS = (
+    "pivot",
+    "arm_length",
+    "pulley_radius",
+    "arm_mass",
+    "arm_inertia",
+    "pulley_mass",
+    "pulley_inertia",
+    "spring_stiffness",
+    "spring_preload_deg",
+    "arm_angle_deg",
+    "arm_cm_distance",
+    "damping",
+)
+_ROUTE_KEYS = ("order", "back_side", "direction")
+_MODEL_KEYS = ("fidelity", "elements_per_span", "effects", "bending")
+
+
+def _parse_belt(data, source) -> Belt:
+    t = _Table(data, "belt", source, _BELT_KEYS)
+    EA = t.number("EA", positive=True)
+    EI = t.number("EI", nonnegative=True)
+    rhoA = t.number("rhoA", positive=True)
+    if t.has("static_tension") == t.has("length"):
+        _fail("belt", "give exactly one of static_tension and length", source)
+    T = t.number("static_tension", required=False, positive=True)
+    L = t.number("length", required=False, positive=True)
+    CA = t.number("CA", required=False, default=0.0, nonnegative=True)
+    return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA))
+
+
+def _parse_pulley(data, i, source) -> Pulley:
+    t = _Table(data, f"pulley[{i}]", source, _PULLEY_KEYS)
+    name = t.string("name")
+    if not name.strip():
+        t.fail("name", "must not be empty")
+    if name == TENSIONER:
+        t.fail("name", f"{TENSIONER!r} is reserved for the [tensioner] idler")
+    center = t.vector2("center")
+    radius = t.number("radius", positive=True)
+    mass = t.number("mass", nonnegative=True)
+    inertia = t.number("inertia", positive=True)
+    driven = t.boolean("driven")
+    if not driven:
+        for k in _DRIVEN_ONLY:
+            if t.has(k):
+                t.fail(k, "only a driven pulley (driven = true) takes a prescribed motion")
+    speed = t.number("speed_rpm", required=False, default=0.0)
+    accel = t.number("acceleration_rpm_per_s", required=False, default=0.0)
+    amp = t.number("fluctuation_amplitude_deg", required=False, default=0.0, nonnegative=True)
+    freq = t.number("fluctuation_frequency_hz", required=False, default=0.0, nonnegative=True)
+    cm = t.vector2("cm_offset", required=False, default=[0.0, 0.0])
+    if math.hypot(*cm) >= radius:
+        t.fail("cm_offset", f"offset {math.hypot(*cm)!r} m must be smaller than the radius {radius!r} m")
+    bd = t.number("bearing_damping", required=False, default=0.0, nonnegative=True)
+    return Pulley(
+        name=name,
+        center=_arr(center),
+        radius=_arr(radius),
+        mass=_arr(mass),
+        inertia=_arr(inertia),
+        driven=driven,
+        speed_rpm=_arr(speed),
+        acceleration_rpm_per_s=_arr(accel),
+        fluctuation_amplitude_deg=_arr(amp),
+        fluctuation_frequency_hz=_arr(freq),
+        cm_offset=_arr(cm),
+        bearing_damping=_arr(bd),
+    )
+
+
+def _parse_tensioner(data, source) -> Tensioner:
+    t = _Table(data, "tensioner", source, _TENSIONER_KEYS)
+    arm_length = t.number("arm_length", positive=True)
+    vals = dict(
+        pivot=_arr(t.vector2("pivot")),
+        arm_length=_arr(arm_length),
+        pulley_radius=_arr(t.number("pulley_radius", positive=True)),
+        arm_mass=_arr(t.number("arm_mass", nonnegative=True)),
+        arm_inertia=_arr(t.number("arm_inertia", nonnegative=True)),
+        pulley_mass=_arr(t.number("pulley_mass", nonnegative=True)),
+        pulley_inertia=_arr(t.number("pulley_inertia", positive=True)),
+        spring_stiffness=_arr(t.number("spring_stiffness", positive=True)),
+        spring_preload_deg=_arr(t.number("spring_preload_deg")),
+        arm_angle_deg=_arr(t.number("arm_angle_deg", required=False)),
+        damping=_arr(t.number("damping", required=False, default=0.0, nonnegative=True)),
+    )
+    cm = t.number("arm_cm_distance", required=False, default=0.0, nonnegative=True)
+    if cm > arm_length:
+        t.fail("arm_cm_distance", f"must not exceed arm_length = {arm_length!r}, got {cm!r}")
+    vals["arm_cm_distance"] = _arr(cm)
+    return Tensioner(**vals)
+
+
+def _parse_route(data, names, has_tensioner, source) -> Route:
+    t = _Table(data, "route", source, _ROUTE_KEYS)
+    order = t.strings("order")
+    if len(order) < 2:
+        t.fail("order", f"a belt needs at least two pulleys in its route, got {order!r}")
+    known = set(names) | ({TENSIONER} if has_tensioner else set())
+    for x in order:
+        if x == TENSIONER and not has_tensioner:
+            t.fail("order", f"{TENSIONER!r} is in the route but there is no [tensioner] table")
+        if x not in known:
+            t.fail("order", f"unknown pulley {x!r} (known: {', '.join(sorted(known))})")
+    for x in names:
+        if x not in order:
+            t.fail("order", f"pulley {x!r} is not in the route")
+    if has_tensioner and TENSIONER not in order:
+        t.fail("order", f"a [tensioner] table is given but {TENSIONER!r} is not in the route")
+    back = t.strings("back_side", required=False, default=[])
+    for x in back:
+        if x not in order:
+            t.fail("back_side", f"{x!r} is not in route.order")
+    direction = t.string("direction", required=False, default="cw", choices=DIRECTIONS)
+    return Route(order=tuple(order), back_side=tuple(back), direction=direction)
+
+
+def _parse_model(data, source) -> Model:
+    t = _Table(data, "model", source, _MODEL_KEYS)
+    fidelity = t.string("fidelity", required=False, default="ancf", choices=FIDELITIES)
+    n = t.integer("elements_per_span", required=False, default=16, minimum=1)
+    effects = t.strings("effects", required=False, default=[])
+    for e in effects:
+        if e not in EFFECTS:
+            t.fail("effects", f"unknown effect {e!r} (known: {', '.join(EFFECTS)})")
+    bending = t.string("bending", required=False, default="linear", choices=BENDING_MODELS)
+    return Model(fidelity=fidelity, elements_per_span=n, effects=tuple(effects), bending=bending)
+
+
+def _key_for(route_idx, scene_names, order):
+    """Key path of a route entry for geometry errors."""
+    name = order[route_idx]
+    if name == TENSIONER:
+        return "tensioner"
+    return f"pulley[{scene_names.index(name)}].center"
+
+
+def _check_geometry(scene: Scene, source: str):
+    order = scene.route.order
+    names = [p.name for p in scene.pulleys]
+    if scene.tensioner is not None and scene.tensioner.arm_angle_deg is None:
+        # the arm angle is not known yet: check the fixed pulleys against each other
+        fixed = [i for i, n in enumerate(order) if n != TENSIONER]
+        for a in range(len(fixed)):
+            for b in range(a + 1, len(fixed)):
+                pa, pb = scene.pulley(order[fixed[a]]), scene.pulley(order[fixed[b]])
+                D = float(jnp.linalg.norm(pa.center - pb.center))
+                if D <= float(pa.radius + pb.radius):
+                    _fail(
+                        _key_for(fixed[b], names, order),
+                        f"pulleys {pa.name!r} and {pb.name!r} overlap: centre distance {D:.6g} m "
+                        f"<= R1 + R2 = {float(pa.radius + pb.radius):.6g} m",
+                        source,
+                    )
+        return None
+    try:
+        g = scene.geometry()
+    except geometry.GeometryError as e:
+        if e.kind in ("overlap", "tangent", "radius"):
+            involved = [i for i in e.pulleys if order[i] == TENSIONER]
+            if involved:
+                key = "tensioner.arm_angle_deg"
+            else:
+                key = _key_for(max(e.pulleys, key=lambda i: names.index(order[i])), names, order)
+        else:
+            key = "route.order"
+        _fail(key, str(e), source)
+    return g
+
+
+def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
+    """Validate a scene given as a dict (the parsed TOML) and build a :class:`Scene`.
+
+    source: a label kept on the scene and on errors (e.g. the file path).
+    Raises :class:`SceneError` (one line, starting with the key path).
+    """
+    top = _Table(data, "", source, _TOP_KEYS)
+    description = top.string("description", required=False, default="")
+    if "belt" not in data:
+        _fail("belt", "missing (required table [belt])", source)
+    belt = _parse_belt(data["belt"], source)
+    if "pulley" not in data:
+        _fail("pulley", "missing (give the pulleys as [[pulley]] tables)", source)
+    raw = data["pulley"]
+    if not isinstance(raw, list):
+        _fail("pulley", f"expected an array of tables [[pulley]], got {_describe(raw)}", source)
+    if not raw:
+        _fail("pulley", "at least one [[pulley]] is required", source)
+    pulleys = tuple(_parse_pulley(p, i, source) for i, p in enumerate(raw))
+    seen: dict[str, int] = {}
+    for i, p in enumerate(pulleys):
+        if p.name in seen:
+            _fail(f"pulley[{i}].name", f"duplicated name {p.name!r} (also pulley[{seen[p.name]}])", source)
+        seen[p.name] = i
+    tensioner = _parse_tensioner(data["tensioner"], source) if "tensioner" in data else None
+    if "route" not in data:
+        _fail("route", "missing (required table [route] with order = [...])", source)
+    route = _parse_route(data["route"], [p.name for p in pulleys], tensioner is not None, source)
+    model = _parse_model(data.get("model", {}), source)
+    scene = Scene(
+        belt=belt,
+        pulleys=pulleys,
+        tensioner=tensioner,
+        route=route,
+        model=model,
+        source=source,
+        description=description,
+    )
+    g = _check_geometry(scene, source)
+    if g is not None and tensioner is None and belt.length is not None:
+        path = float(g.length)
+        if float(belt.length) >= path:
+            _fail(
+                "belt.length",
+                f"{float(belt.length)!r} m is not shorter than the belt path {path:.6g} m "
+                "between fixed pulleys: the belt would be slack",
+                source,
+            )
+    return scene
+
+
+def load_scene(path: str | os.PathLike) -> Scene:
+    """Read and validate a TOML scene file; returns a :class:`Scene`.
+
+    Raises :class:`SceneError` (one line) for a missing or unreadable file,
+    malformed TOML (with the line and column) or an invalid scene.
+    """
+    p = os.fspath(path)
+    try:
+        with open(p, "rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        _fail(p, "scene file not found", p)
+    except IsADirectoryError:
+        _fail(p, "is a directory, not a scene file", p)
+    except tomllib.TOMLDecodeError as e:
+        _fail(p, f"malformed TOML: {e}", p)
+    except UnicodeDecodeError as e:
+        _fail(p, f"not a UTF-8 text file ({e.reason})", p)
+    except OSError as e:
+        _fail(p, f"cannot read: {e.strerror or e}", p)
+    return parse_scene(data, source=p)
+
+
+def loads_scene(text: str, source: str = "<string>") -> Scene:
+    """Parse and validate a scene given as TOML text (see :func:`load_scene`)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        _fail(source, f"malformed TOML: {e}", source)
+    return parse_scene(data, source=source)
