@@ -66,9 +66,9 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
     ``diffrax.LocalLinearInterpolation``.  ``y`` may be any pytree of float
     arrays; it is flattened internally and the implicit equation for
     ``ydot_{n+1}`` is solved by Newton's method with the dense Jacobian of
-    ``f`` from ``jax.jacfwd`` (exact Newton, the Jacobian re-evaluated every
-    iteration) and a dense LU solve, so it suits systems of up to a few hundred
-    unknowns.
+    ``f`` from ``jax.jacfwd`` and a dense LU solve of the row- and
+    column-equilibrated Newton matrix, so it suits systems of up to a few
+    hundred unknowns.  The predictor is JWH's ``y_{n+1} = y_n``.
 
     The solver state is ``ydot_n`` (units of y per unit time), initialised to
     ``f(t0, y0)`` and re-initialised after a jump (``made_jump``).
@@ -78,16 +78,27 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
     * ``rho_inf``: spectral radius at infinity, in [0, 1] (1.0 = no numerical
       dissipation, the implicit midpoint rule).
     * ``newton_iterations``: maximum Newton iterations per step (a fixed trip
-      count, so the step is reverse-mode differentiable; converged iterations
-      are skipped).
-    * ``rtol``, ``atol``: the Newton iteration has converged when its last
-      update changed ``y_{n+1}`` by at most ``atol + rtol * max|y_{n+1}|``
-      (max norm over all components; atol in units of y).  A step whose
-      Newton iteration has not converged within ``newton_iterations``, or has
-      produced non-finite values, returns
+      count, a ``fori_loop`` over a ``cond`` that skips the iterations after
+      convergence, so the step is reverse-mode differentiable).
+    * ``full_newton``: True (default) re-evaluates the Jacobian at every
+      iteration; False evaluates it once per step, at the predictor
+      (simplified Newton: cheaper iterations, slower convergence; it can
+      fail where the Jacobian changes much over a step).
+    * ``rtol``, ``atol``: convergence when the change of ``y_{n+1}`` by the last
+      update, ``size`` (max norm over all components), times
+      ``min(1, theta / (1 - theta))`` (Hairer & Wanner's estimate of the error
+      left, theta = ratio of the last two update sizes, used when theta < 1/2)
+      is at most ``atol + rtol * max|y_{n+1}|`` (atol in units of y).  A step
+      whose Newton iteration has not converged within ``newton_iterations``,
+      or has produced non-finite values, returns
       ``RESULTS.nonlinear_max_steps_reached`` / ``RESULTS.nonfinite``, so
       ``diffeqsolve`` stops (or raises, with ``throw=True``) instead of
       returning a wrong answer.
+
+    With rho_inf = 1 the energy of a linear (or quadratic-energy) system is
+    conserved to round-off; for a nonlinear one (e.g. Green-Lagrange axial
+    strain) the energy error is O(h^2) but can grow when energetic modes are
+    unresolved (h omega > 1): see tests/test_transient.py.
     """
 
     rho_inf: float = 1.0
