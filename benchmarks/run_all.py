@@ -51,8 +51,21 @@ def main(argv: list[str]) -> int:
     (results / "run_all.json").write_text(json.dumps(
         {"date": dt.datetime.now().astimezone().isoformat(timespec="seconds"), "python": sys.executable,
          "scripts": summary}, indent=2) + "\n")
+    write_summary(results)
     return 0 if all(s["returncode"] == 0 for s in summary) else 1
 
 
+def write_summary(results: Path) -> None:
+    """Collect the headline figures of every results/bench_*.json into benchmarks/summary.json."""
+    headline = {}
+    for f in sorted(results.glob("bench_*.json")):
+        data = json.loads(f.read_text())
+        headline[f.stem] = {"machine": data.get("machine"), "summary": data.get("summary")}
+    (HERE / "summary.json").write_text(json.dumps(headline, indent=2) + "\n")
+
+
 if __name__ == "__main__":
+    if sys.argv[1:] == ["--summary-only"]:  # rebuild summary.json from the saved results
+        write_summary(HERE / "results")
+        sys.exit(0)
     sys.exit(main(sys.argv[1:]))
