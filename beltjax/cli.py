@@ -83,7 +83,6 @@ def span_table(result, n_rows: int = 12) -> str:
                  + (f"  {'beam formula [Hz]':>17}" if show_formula else ""))
     rows = list(range(min(n_rows, len(r.frequencies_hz))))
     rows += [i for i, lab in enumerate(r.labels) if lab.endswith("longitudinal")][:3]
-    counts = 0
     for i in sorted(set(rows)):
         line = f"{i + 1:>4}  {r.frequencies_hz[i]:>14.2f}  {r.labels[i]:<20} {r.transverse_share[i]:>16.3f}"
         if show_formula and r.labels[i].endswith("transverse"):
@@ -92,7 +91,6 @@ def span_table(result, n_rows: int = 12) -> str:
             f = n / (2 * L) * np.sqrt((r.tension + EI * (n * np.pi / L) ** 2) * r.stretch / rhoA)
             line += f"  {f:>17.2f}"
         lines.append(line)
-        counts += 1
     lines.append(f"({len(r.frequencies_hz)} modes in all; beam formula: n/(2L) sqrt((T + EI (n pi/L)^2)/rhoA'),"
                  " rhoA' per stretched length)" if show_formula else f"({len(r.frequencies_hz)} modes in all)")
     return "\n".join(lines)

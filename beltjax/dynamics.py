@@ -35,11 +35,17 @@ import diffrax
 import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
-import numpy as np
 
 from beltjax.ancf import Section
 from beltjax.integrators import GeneralizedAlpha
-from beltjax.span import element_index, free_dofs, span_kinetic_energy, span_strain_energy
+from beltjax.span import (
+    element_index,
+    free_dofs,
+    span_inertial_forces,
+    span_kinetic_energy,
+    span_mass_matrix,
+    span_strain_energy,
+)
 
 __all__ = [
     "SpanTransient",
@@ -77,9 +83,7 @@ def mass_matrix_inverse(rhoA, L0, idx, free):
     ~ 1e5 for the ANCF element) makes f and its Jacobian a matrix product,
     several times cheaper than triangular solves inside the Newton loop.
     """
-    n = int(np.max(idx)) + 1
-    z = jnp.zeros(n)
-    M = jax.hessian(span_kinetic_energy, argnums=1)(z, z, 0.0, rhoA, L0, idx)
+    M = span_mass_matrix(rhoA, L0, idx)
     chol = jnp.linalg.cholesky(M[jnp.ix_(free, free)])
     Minv = jsl.cho_solve((chol, True), jnp.eye(len(free), dtype=chol.dtype))
     return 0.5 * (Minv + Minv.T)
@@ -105,12 +109,7 @@ def span_vector_field(section: Section, L0, idx, free, q_fixed, c=0.0, bending="
     def forces(q, v):
         F = -jax.grad(span_strain_energy)(q, section, L0, idx, bending)
         if not (isinstance(c, (int, float)) and c == 0.0):
-            # Lagrange: dT/dq - d/dt(dT/dv)|_{v'=0} with constant c
-            dT_dq = jax.grad(span_kinetic_energy, argnums=0)(q, v, c, section.rhoA, L0, idx)
-            _, dp = jax.jvp(
-                lambda qq: jax.grad(span_kinetic_energy, argnums=1)(qq, v, c, section.rhoA, L0, idx), (q,), (v,)
-            )
-            F = F + dT_dq - dp
+            F = F + span_inertial_forces(q, v, c, 0.0, section.rhoA, L0, idx)  # constant c
         return F
 
     def f(t, y, args):

@@ -56,6 +56,18 @@ def span_strain_energy(q, section: Section, L0, idx, bending="linear"):
     return jnp.sum(U)
 
 
+def span_mass_matrix(rhoA, L0, idx):
+    """Constant mass matrix d^2T/dq_dot^2 of a span (kg), all coordinates."""
+    z = jnp.zeros(int(np.max(idx)) + 1)
+    return jax.hessian(span_kinetic_energy, argnums=1)(z, z, 0.0, rhoA, L0, idx)
+
+
+def span_inertial_forces(q, q_dot, c, c_dot, rhoA, L0, idx):
+    """Assembled velocity and transport inertial forces of a span (N): ``ancf.inertial_forces`` summed."""
+    f = jax.vmap(ancf.inertial_forces, in_axes=(0, 0, None, None, None, None))(q[idx], q_dot[idx], c, c_dot, rhoA, L0)
+    return jnp.zeros_like(q).at[idx].add(f)
+
+
 def span_elastic_forces(q, section: Section, L0, idx, bending="linear"):
     """Assembled elastic forces -dU/dq of a span (N), shape (4 (N+1),)."""
     return -jax.grad(span_strain_energy)(q, section, L0, idx, bending)
@@ -114,7 +126,7 @@ def span_matrices(section: Section, length, tension, speed, *, n_elements: int, 
     def pot(q):
         return span_strain_energy(q, section, L0, idx, bending)
 
-    M = jax.hessian(kin, argnums=1)(q0, z)
+    M = span_mass_matrix(section.rhoA, L0, idx)
     dp_dq = jax.jacfwd(jax.grad(kin, argnums=1), argnums=0)(q0, z)
     G = dp_dq - dp_dq.T
     K = jax.hessian(pot)(q0) - jax.hessian(kin, argnums=0)(q0, z)
@@ -236,10 +248,9 @@ def analyse_span(
     shares, labels = _label_modes(V, mats["M"], free)
     shapes = np.zeros((n_coords, V.shape[1]))
     if V.shape[1]:
-        Vr = np.real(V) if np.iscomplexobj(V) else V
+        Vr = V
         if np.iscomplexobj(V):  # rotate each complex mode so its real part carries most of it
-            phase = np.exp(-1j * np.angle(np.sum(V**2, axis=0)) / 2)
-            Vr = np.real(V * phase)
+            Vr = np.real(V * np.exp(-1j * np.angle(np.sum(V**2, axis=0)) / 2))
         shapes[free, :] = Vr / np.max(np.abs(Vr), axis=0, keepdims=True)
     # transverse stiffness T_elastic - rhoA_spatial v^2 vanishes at v = sqrt(T lam / rhoA)
     v_crit = float(np.sqrt(tension * lam / rhoA)) if tension > 0 else 0.0
