@@ -50,6 +50,58 @@ def _elements(text):
         raise argparse.ArgumentTypeError(f"--elements must be at most 400, got {n}")
     return n
 
+MAX_SPEEDS = 2000  # most speeds in one Campbell sweep
+
+
+def _rpm_range(text):
+    """--rpm A:B:STEP -> numpy.arange(A, B + STEP/2, STEP) (inclusive end)."""
+    import numpy as np
+
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"--rpm must be A:B:STEP (three numbers, e.g. 0:2500:50), got {text!r}")
+    try:
+        a, b, step = (float(x) for x in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--rpm must be A:B:STEP with numbers, got {text!r}") from None
+    if not all(math.isfinite(x) for x in (a, b, step)):
+        raise argparse.ArgumentTypeError(f"--rpm values must be finite, got {text!r}")
+    if step <= 0:
+        raise argparse.ArgumentTypeError(f"--rpm STEP must be > 0, got {text!r}")
+    if a < 0:
+        raise argparse.ArgumentTypeError(f"--rpm start A must be >= 0, got {text!r}")
+    if b < a:
+        raise argparse.ArgumentTypeError(f"--rpm end B must be >= start A, got {text!r}")
+    n = math.ceil((b + step / 2 - a) / step)  # numpy.arange's length
+    if n > MAX_SPEEDS:
+        raise argparse.ArgumentTypeError(f"--rpm gives {n} speeds, at most {MAX_SPEEDS} allowed, got {text!r}")
+    return np.arange(a, b + step / 2, step)
+
+
+def _orders(text):
+    """--orders 1,2,3 -> tuple of positive floats."""
+    items = [x.strip() for x in text.split(",")]
+    out = []
+    for x in items:
+        try:
+            k = float(x)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"--orders must be comma-separated numbers, got {text!r}") from None
+        if not math.isfinite(k) or k <= 0:
+            raise argparse.ArgumentTypeError(f"--orders must be positive, got {x!r} in {text!r}")
+        out.append(k)
+    return tuple(out)
+
+
+def _modes(text):
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--modes must be a positive integer, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"--modes must be at least 1, got {n}")
+    return n
+
 
 def _enable_compile_cache():
     """JAX's persistent compilation cache for command-line runs (~/.cache/beltjax/jax)."""
@@ -119,6 +171,175 @@ def cmd_span(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- drive commands
+
+
+def _out_dir(text) -> pathlib.Path:
+    out = pathlib.Path(text)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out: cannot create directory {str(out)!r}: {exc.strerror}") from None
+    return out
+
+
+def _load(path):
+    """Load a scene file; a bad one is an InputError naming the file and the key."""
+    from beltjax.scene import SceneError, load_scene
+
+    try:
+        return load_scene(path)
+    except SceneError as exc:
+        msg = str(exc)
+        raise InputError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+
+
+def _analysis(fn, *args, **kwargs):
+    """Run an analysis; a drive without an admissible static state is an InputError."""
+    from beltjax.statics import StaticsError
+
+    try:
+        return fn(*args, **kwargs)
+    except StaticsError as exc:
+        raise InputError(str(exc)) from None
+
+
+def _title(scene, path) -> str:
+    return f"{scene.description} ({path})" if scene.description else str(path)
+
+
+def statics_table(res) -> str:
+    """Span tensions, hub forces and the tensioner's state of a StaticResult, as text."""
+    import numpy as np
+
+    lines = [f"belt: unstretched length {res.belt_length_m:.6g} m, installation tension "
+             f"{res.installation_tension_N:.4g} N, stretch {res.stretch:.6f}, belt speed {res.speed_m_s:g} m/s",
+             "", f"{'span':<26} {'length [m]':>11} {'tension [N]':>12}"]
+    for name, L, T in zip(res.span_names, res.span_lengths_m, res.span_tensions_N):
+        lines.append(f"{name:<26} {float(L):>11.5f} {float(T):>12.2f}")
+    lines += ["", f"{'hub (force of the belt)':<26} {'Fx [N]':>10} {'Fy [N]':>10} {'|F| [N]':>10} {'wrap [deg]':>11}"]
+    for name, F in res.hub_forces_N.items():
+        F = np.asarray(F, float)
+        lines.append(f"{name:<26} {F[0]:>10.2f} {F[1]:>10.2f} {np.hypot(*F):>10.2f} "
+                     f"{res.wrap_angles_deg.get(name, float('nan')):>11.2f}")
+    if res.tensioner_angle_deg is not None:
+        px, py = res.tensioner_pivot_force_N
+        lines += ["", f"tensioner: arm angle {res.tensioner_angle_deg:.3f} deg, spring moment "
+                  f"{res.spring_moment_Nm:.4g} N m, pivot force ({px:.2f}, {py:.2f}) N"]
+    lines.append(f"Newton iterations: {res.iterations}")
+    return "\n".join(lines)
+
+
+def cmd_statics(args) -> int:
+    """Static state of a drive: statics.json, layout.png and a table."""
+    from beltjax import statics
+    from beltjax.plotting import plot_layout
+
+    scene = _load(args.scene)
+    out = _out_dir(args.out)
+    res = _analysis(statics.analyse_statics, scene)
+    data = res.to_json()
+    if not all(math.isfinite(x) for x in data["span_tensions_N"]):
+        raise RuntimeError("the statics produced a non-finite span tension")
+    (out / "statics.json").write_text(json.dumps(data, indent=2))
+    plot_layout(scene, res, out / "layout.png")
+    print(f"statics of {_title(scene, args.scene)}")
+    print(statics_table(res))
+    print(f"wrote {out / 'statics.json'} and {out / 'layout.png'}")
+    return 0
+
+
+def modal_table(m, n_modes: int) -> str:
+    """Mode number, frequency and label of the first n_modes modes of a ModalResult."""
+    if not m.stable:
+        lines = [f"UNSTABLE at belt speed {m.speed_m_s:g} m/s (past the critical speed); unstable eigenvalues [1/s]:"]
+        lines += [f"  {lam.real:+.4g} {lam.imag:+.4g}j" for lam in m.unstable_eigenvalues]
+        return "\n".join(lines)
+    k = min(n_modes, len(m.frequencies_hz))
+    lines = [f"{'mode':>4}  {'frequency [Hz]':>14}  label"]
+    lines += [f"{i + 1:>4}  {m.frequencies_hz[i]:>14.2f}  {m.labels[i]}" for i in range(k)]
+    lines.append(f"({k} of {len(m.frequencies_hz)} modes shown; {m.n_independent} independent coordinates)")
+    return "\n".join(lines)
+
+
+def cmd_modal(args) -> int:
+    """Natural frequencies and mode shapes of a drive: modal.json, modes.png and a table."""
+    from beltjax import drive, drive_modal
+    from beltjax.plotting import plot_drive_modes
+
+    scene = _load(args.scene)
+    out = _out_dir(args.out)
+    speed = None if args.rpm is None else float(drive.belt_speed(scene, args.rpm))
+    m = _analysis(drive_modal.analyse_modes, scene, speed)
+    data = m.to_json(n_modes=args.modes)
+    if not all(math.isfinite(x) for x in data["frequencies_hz"]):
+        raise RuntimeError("the eigen-analysis produced a non-finite frequency")
+    (out / "modal.json").write_text(json.dumps(data, indent=2))
+    plot_drive_modes(scene, m, out / "modes.png", n_modes=6, pool=args.modes)
+    rpm = "" if args.rpm is None else f" ({args.rpm:g} rpm of the drive pulley)"
+    print(f"modes of {_title(scene, args.scene)}")
+    print(f"belt speed {m.speed_m_s:g} m/s{rpm}; " + ("stable" if m.stable else "UNSTABLE"))
+    if m.speed_m_s != 0 and not scene.model.has("transport"):
+        print("note: the scene does not list the \"transport\" effect, so the belt speed does not change the modes")
+    print(modal_table(m, args.modes))
+    print(f"wrote {out / 'modal.json'} and {out / 'modes.png'}")
+    return 0
+
+
+def campbell_summary(c, n_rows: int = 12) -> str:
+    """Frequencies at the lowest and highest speeds, and the crossings, of a CampbellResult."""
+    import numpy as np
+
+    F = np.asarray(c.frequencies_hz, float)
+    r0, r1 = c.rpm[0], c.rpm[-1]
+    lines = [f"{len(c.rpm)} speeds of the {c.drive_pulley} pulley, {r0:g} to {r1:g} rpm; "
+             f"orders {', '.join(f'{k:g}x' for k in c.orders)}"]
+    if not c.transport:
+        lines.append("note: the scene does not list the \"transport\" effect, so the frequencies do not depend on "
+                     "speed (add \"transport\" to [model] effects)")
+    n_unstable = int(np.sum(~np.asarray(c.stable, bool)))
+    if n_unstable:
+        bad = np.asarray(c.rpm)[~np.asarray(c.stable, bool)]
+        lines.append(f"UNSTABLE at {n_unstable} speeds (from {bad.min():g} rpm): no frequencies there")
+    k = min(n_rows, F.shape[1])
+    lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  label"]
+    fmt = lambda x: f"{x:>14.2f}" if np.isfinite(x) else f"{'-':>14}"  # noqa: E731
+    for i in range(k):
+        lines.append(f"{i + 1:>4}  {fmt(F[0, i])}  {fmt(F[-1, i])}  {c.labels[i]}")
+    if F.shape[1] > k:
+        lines.append(f"({k} of {F.shape[1]} modes shown)")
+    lines.append("")
+    if c.crossings:
+        lines.append(f"{len(c.crossings)} crossings (mode meets order line):")
+        for x in c.crossings:
+            lines.append(f"  {x['rpm']:>8.1f} rpm  {x['frequency_hz']:>8.2f} Hz  order {x['order']:g}x  "
+                         f"mode {x['mode']} ({x['label']})")
+    else:
+        lines.append("no crossings in this speed range")
+    return "\n".join(lines)
+
+
+def cmd_campbell(args) -> int:
+    """Campbell diagram of a drive: campbell.json, campbell.png and the crossings."""
+    from beltjax import campbell
+    from beltjax.plotting import plot_campbell
+
+    scene = _load(args.scene)
+    out = _out_dir(args.out)
+
+    def progress(done, total):
+        print(f"campbell: {done}/{total} speeds", file=sys.stderr, flush=True)
+
+    c = _analysis(campbell.analyse_campbell, scene, args.rpm, orders=args.orders, n_modes=args.modes,
+                  progress=progress)
+    (out / "campbell.json").write_text(json.dumps(c.to_json(), indent=2))
+    plot_campbell(c, out / "campbell.png", title=_title(scene, args.scene))
+    print(f"Campbell diagram of {_title(scene, args.scene)}")
+    print(campbell_summary(c))
+    print(f"wrote {out / 'campbell.json'} and {out / 'campbell.png'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="beltjax", description="Belt-drive simulation with ANCF belt spans (JAX).")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
@@ -136,6 +357,29 @@ def build_parser() -> argparse.ArgumentParser:
                     help="bending energy: thesis' small-strain form or exact curvature")
     sp.add_argument("--out", default="out", help="output directory (default ./out)")
     sp.set_defaults(func=cmd_span)
+
+    st = sub.add_parser("statics", help="static state of a drive: span tensions, hub forces, tensioner angle")
+    st.add_argument("scene", help="scene file (TOML)")
+    st.add_argument("--out", default="out", help="output directory (default ./out)")
+    st.set_defaults(func=cmd_statics)
+
+    mo = sub.add_parser("modal", help="natural frequencies and mode shapes of a drive")
+    mo.add_argument("scene", help="scene file (TOML)")
+    mo.add_argument("--modes", type=_modes, default=20, help="modes reported in the table and modal.json (default 20)")
+    mo.add_argument("--rpm", type=_number("rpm", True), default=None,
+                    help="drive pulley speed [rpm] (default: the scene's speed_rpm)")
+    mo.add_argument("--out", default="out", help="output directory (default ./out)")
+    mo.set_defaults(func=cmd_modal)
+
+    ca = sub.add_parser("campbell", help="Campbell diagram: frequencies against drive pulley speed")
+    ca.add_argument("scene", help="scene file (TOML)")
+    ca.add_argument("--rpm", type=_rpm_range, required=True,
+                    help="drive pulley speeds A:B:STEP [rpm], end included (e.g. 0:2500:50)")
+    ca.add_argument("--orders", type=_orders, default=(1.0, 2.0, 3.0),
+                    help="excitation orders, comma-separated (default 1,2,3)")
+    ca.add_argument("--modes", type=_modes, default=20, help="lowest modes computed (default 20)")
+    ca.add_argument("--out", default="out", help="output directory (default ./out)")
+    ca.set_defaults(func=cmd_campbell)
     return p
 
 
@@ -145,7 +389,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command is None:
-            raise InputError("a command is required: span")
+            raise InputError("a command is required: span, statics, modal or campbell")
         _enable_compile_cache()
         return args.func(args)
     except InputError as exc:

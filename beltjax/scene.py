@@ -367,7 +367,7 @@ _PULLEY_KEYS = (
     "cm_offset",
     "bearing_damping",
 )
-_DRIVEN_ONLY = ("speed_rpm", "acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
+_DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
 _TENSIONER_KEYS = (
     "pivot",
     "arm_length",
@@ -563,6 +563,15 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         if p.name in seen:
             _fail(f"pulley[{i}].name", f"duplicated name {p.name!r} (also pulley[{seen[p.name]}])", source)
         seen[p.name] = i
+    drive = next((i for i, p in enumerate(pulleys) if p.driven), 0)
+    for i, p in enumerate(raw):
+        if i != drive and isinstance(p, dict) and "speed_rpm" in p:
+            _fail(
+                f"pulley[{i}].speed_rpm",
+                f"only the drive pulley takes a speed: a driven pulley (driven = true), else the first "
+                f"pulley (here pulley[{drive}], {pulleys[drive].name!r})",
+                source,
+            )
     tensioner = _parse_tensioner(data["tensioner"], source) if "tensioner" in data else None
     if "route" not in data:
         _fail("route", "missing (required table [route] with order = [...])", source)

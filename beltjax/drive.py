@@ -1,0 +1,405 @@
+"""The hybrid drive model (thesis ch. 4): one kinematic map, reduced mass and forces.
+
+Bodies and spans
+----------------
+Every route entry is a rigid pulley (the tensioner's idler included) with full
+coordinates ``(x, y, angle)`` of its centre; a tensioner adds its arm as one more
+rigid body ``(x_cm, y_cm, theta)``.  Each span between consecutive route entries
+is a chain of ``N`` ANCF elements (``N + 1`` nodes of ``(x, y, x', y')``, global
+frame).  The full coordinate vector ``q`` stacks the spans, then the bodies.
+
+Independent coordinates ``q_i``
+-------------------------------
+* the rotation perturbation ``phi`` (rad, CCW) of every pulley that is not
+  driven (a driven pulley's motion is prescribed: zero in statics and modal);
+* the tensioner arm's angle change ``dtheta`` (rad) from the installation angle;
+* per span, the two end slopes and all coordinates of its interior nodes (4 N).
+
+The kinematic map ``q = Phi(q_i)`` (:func:`full_coordinates`) holds every
+constraint of the drive (eqs. 4.37-4.46, 4.99-4.113 of the thesis): pulley centres
+fixed or carried by the arm, and span end nodes pinned at their tangent points.
+A span end node sits at its installation tangent point, is carried rigidly with
+its pulley's centre (the arm for the idler) and slides along the span by
+``s R phi`` when its pulley turns by ``phi`` (``s`` the wrap sense).  ``phi`` is
+only the perturbation: the belt's steady motion is the transport speed ``c`` of
+the Eulerian (ALE) span elements, so a steadily turning pulley does not drag
+the span nodes away from the tangent points.
+
+Reduced equations: ``M_ii = J^T M J`` and ``F_ii = J^T (F - M gamma)`` with the
+Jacobian ``J = dPhi/dq_i`` (autodiff; it is the junction structure of the
+power-port picture) and ``gamma = dJ/dt q_i_dot``.  ``F`` holds only the effects
+the scene lists (``[model] effects``): elastic forces always, ``transport``
+(gyroscopic + centrifugal terms of the moving belt) and ``gravity`` when asked
+for; an effect not listed is not traced into the compiled function.
+
+Units: SI throughout (m, rad, N, N m, kg, kg m^2, s).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import ancf, span
+from beltjax.ancf import Section
+from beltjax.scene import TENSIONER, Scene
+
+GRAVITY = (0.0, -9.81)  # m/s^2
+
+
+# --------------------------------------------------------------------------- structure
+
+
+class Installation(NamedTuple):
+    """The belt as installed (a pytree of arrays; see :func:`beltjax.statics.install`).
+
+    arm_angle: tensioner arm angle theta_1 (rad; 0 without a tensioner);
+    stretch: uniform stretch lam of the belt at installation (-);
+    tension: installation tension (N); belt_length: unstretched belt length (m);
+    centers (n, 2) m and radii (n,) m in route order; span_start, span_end (n, 2):
+    tangent points (m); span_tangent (n, 2): unit vectors; span_length (n,) m:
+    installed span lengths; wrap (n,) rad.
+    """
+
+    arm_angle: jax.Array
+    stretch: jax.Array
+    tension: jax.Array
+    belt_length: jax.Array
+    centers: jax.Array
+    radii: jax.Array
+    span_start: jax.Array
+    span_end: jax.Array
+    span_tangent: jax.Array
+    span_length: jax.Array
+    wrap: jax.Array
+
+
+def canonical(scene: Scene) -> Scene:
+    """The scene without its file label and description, so that scenes differing only in
+    numbers share one compiled function."""
+    return dataclasses.replace(scene, source="", description="")
+
+
+def span_names(scene: Scene) -> list[str]:
+    """Names of the spans in route order: "<from>-<to>" (span i leaves route entry i)."""
+    order = scene.route.order
+    n = len(order)
+    return [f"{order[i]}-{order[(i + 1) % n]}" for i in range(n)]
+
+
+def is_free(scene: Scene) -> list[bool]:
+    """Per route entry: whether its rotation is an independent coordinate (not driven)."""
+    return [True if name == TENSIONER else not scene.pulley(name).driven for name in scene.route.order]
+
+
+def n_rigid(scene: Scene) -> int:
+    """Number of independent rigid-body coordinates (free pulley angles, arm angle)."""
+    return sum(is_free(scene)) + (1 if scene.tensioner is not None else 0)
+
+
+def n_independent(scene: Scene) -> int:
+    """Number of independent coordinates of the drive."""
+    return n_rigid(scene) + 4 * scene.model.elements_per_span * len(scene.route.order)
+
+
+def n_full(scene: Scene) -> int:
+    """Number of full coordinates (spans, then 3 per body)."""
+    n = len(scene.route.order)
+    return 4 * (scene.model.elements_per_span + 1) * n + 3 * (n + (1 if scene.tensioner is not None else 0))
+
+
+def body_names(scene: Scene) -> list[str]:
+    """Rigid bodies in the order of the full coordinates: route entries, then "tensioner arm"."""
+    names = list(scene.route.order)
+    if scene.tensioner is not None:
+        names.append("tensioner arm")
+    return names
+
+
+def static_dofs(scene: Scene) -> np.ndarray:
+    """Independent coordinates solved for in statics: all but a free drive pulley's angle.
+
+    A drive whose pulleys are all free turns as a rigid body at no cost (zero
+    stiffness); statics holds the drive pulley (its reaction is the drive torque).
+    """
+    k = drive_pulley(scene)
+    free = is_free(scene)
+    dofs = np.arange(n_independent(scene))
+    if free[k]:
+        return np.delete(dofs, sum(free[:k]))
+    return dofs
+
+
+def drive_pulley(scene: Scene) -> int:
+    """Route index of the pulley whose speed sets the belt speed.
+
+    The driven pulley (the first one in the file if several), else the first
+    pulley of the file.
+    """
+    order = scene.route.order
+    driven = [p.name for p in scene.pulleys if p.driven and p.name in order]
+    name = driven[0] if driven else next(p.name for p in scene.pulleys if p.name in order)
+    return order.index(name)
+
+
+def belt_speed(scene: Scene, rpm=None):
+    """Belt speed (m/s) at the drive pulley's speed ``rpm`` (default: its speed_rpm)."""
+    p = scene.pulley(scene.route.order[drive_pulley(scene)])
+    rpm = p.speed_rpm if rpm is None else rpm
+    return jnp.abs(rpm) * (2 * jnp.pi / 60.0) * p.radius
+
+
+def section(scene: Scene) -> Section:
+    """The belt section (EA N, EI N m^2, rhoA kg/m)."""
+    b = scene.belt
+    return Section(b.EA, b.EI, b.rhoA)
+
+
+def element_length(scene: Scene, inst: Installation):
+    """Unstretched element length of each span (m), shape (n,)."""
+    return inst.span_length / (inst.stretch * scene.model.elements_per_span)
+
+
+# --------------------------------------------------------------------------- kinematic map
+
+
+def _split(qi, scene: Scene):
+    nr = n_rigid(scene)
+    n = len(scene.route.order)
+    N = scene.model.elements_per_span
+    return qi[:nr], qi[nr:].reshape(n, 4 * N)
+
+
+def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
+    """Pulley rotation perturbations (n,) rad in route order, and the arm angle (rad)."""
+    rigid, _ = _split(qi, scene)
+    free = is_free(scene)
+    k, phis = 0, []
+    for f in free:
+        if f:
+            phis.append(rigid[k])
+            k += 1
+        else:
+            phis.append(jnp.asarray(driven_angle, dtype=qi.dtype))
+    theta = inst.arm_angle + (rigid[-1] if scene.tensioner is not None else 0.0)
+    return jnp.stack(phis), theta
+
+
+def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0):
+    """The kinematic map q = Phi(q_i): full coordinates from independent ones.
+
+    qi: independent coordinates (m, rad, -); driven_angle: prescribed rotation
+    perturbation of driven pulleys (rad).  Returns the full vector: span
+    coordinates (n spans x 4 (N+1)), then (x, y, angle) per body (m, rad).
+    """
+    order = scene.route.order
+    n = len(order)
+    N = scene.model.elements_per_span
+    _, spans = _split(qi, scene)
+    phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
+    centers, radii = scene.layout(theta) if scene.tensioner is not None else (inst.centers, inst.radii)
+    senses = jnp.asarray(scene.route.senses, dtype=qi.dtype)
+    nxt = (np.arange(n) + 1) % n
+    slide = senses * radii * phi  # rim travel of each pulley along the belt (m)
+    t = inst.span_tangent
+    start = centers + (inst.span_start - inst.centers) + slide[:, None] * t
+    end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t
+    parts = []
+    for s in range(n):
+        body = spans[s]
+        nodes = jnp.concatenate([start[s], body[:2], body[2:-2], end[s], body[-2:]])
+        parts.append(nodes)
+        assert nodes.shape[0] == 4 * (N + 1)
+    bodies = [jnp.concatenate([centers[i], phi[i][None]]) for i in range(n)]
+    if scene.tensioner is not None:
+        tt = scene.tensioner
+        cm = tt.pivot + tt.arm_cm_distance * jnp.stack([jnp.cos(theta), jnp.sin(theta)])
+        bodies.append(jnp.concatenate([cm, theta[None]]))
+    return jnp.concatenate(parts + bodies)
+
+
+def split_full(q, scene: Scene):
+    """Full vector -> (spans (n, 4 (N+1)), bodies (nb, 3))."""
+    n = len(scene.route.order)
+    ns = 4 * (scene.model.elements_per_span + 1)
+    return q[: n * ns].reshape(n, ns), q[n * ns :].reshape(-1, 3)
+
+
+def installed_coordinates(scene: Scene, inst: Installation):
+    """Independent coordinates of the installed drive: straight spans at the installation stretch."""
+    n = len(scene.route.order)
+    N = scene.model.elements_per_span
+    x = jnp.linspace(0.0, 1.0, N + 1)
+    pos = inst.span_start[:, None, :] + x[None, :, None] * (inst.span_end - inst.span_start)[:, None, :]
+    slope = jnp.broadcast_to((inst.stretch * inst.span_tangent)[:, None, :], (n, N + 1, 2))
+    nodes = jnp.concatenate([pos, slope], axis=-1).reshape(n, 4 * (N + 1))
+    spans = jnp.concatenate([nodes[:, 2 : 4 * N], nodes[:, 4 * N + 2 :]], axis=1)  # drop end positions
+    return jnp.concatenate([jnp.zeros(n_rigid(scene)), spans.reshape(-1)])
+
+
+# --------------------------------------------------------------------------- full mass and forces
+
+
+def body_masses(scene: Scene):
+    """Diagonal of the bodies' mass matrix: (m, m, J) per body (kg, kg, kg m^2)."""
+    vals = []
+    for name in scene.route.order:
+        if name == TENSIONER:
+            t = scene.tensioner
+            vals.append(jnp.stack([t.pulley_mass, t.pulley_mass, t.pulley_inertia]))
+        else:
+            p = scene.pulley(name)
+            vals.append(jnp.stack([p.mass, p.mass, p.inertia]))
+    if scene.tensioner is not None:
+        t = scene.tensioner
+        vals.append(jnp.stack([t.arm_mass, t.arm_mass, t.arm_inertia]))
+    return jnp.concatenate(vals)
+
+
+def full_mass_matrix(scene: Scene, inst: Installation):
+    """Block-diagonal mass matrix of the full coordinates (kg, kg m^2)."""
+    n = len(scene.route.order)
+    N = scene.model.elements_per_span
+    idx = span.element_index(N)
+    Le = element_length(scene, inst)
+    blocks = [span.span_mass_matrix(scene.belt.rhoA, Le[s], idx) for s in range(n)]
+    blocks.append(jnp.diag(body_masses(scene)))
+    return jax.scipy.linalg.block_diag(*blocks)
+
+
+def _span_potential(e, sec: Section, Le, idx, bending, gravity: bool):
+    U = span.span_strain_energy(e, sec, Le, idx, bending)
+    if gravity:
+        U = U + jnp.sum(jax.vmap(ancf.gravity_energy, in_axes=(0, None, None, None))(e[idx], sec.rhoA, Le, GRAVITY))
+    return U
+
+
+def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot=0.0):
+    """Forces on the coordinates of span ``s`` (N): elastic, plus the listed effects.
+
+    e, e_dot: the span's coordinates and rates; c: transport speed (m/s of
+    unstretched belt), c_dot its rate (m/s^2).  ``transport`` adds the
+    gyroscopic, centrifugal and rhoA dc/dt terms, ``gravity`` the weight.
+    """
+    N = scene.model.elements_per_span
+    idx = span.element_index(N)
+    sec = section(scene)
+    Le = element_length(scene, inst)[s]
+    grav = scene.model.has("gravity")
+    f = -jax.grad(_span_potential)(e, sec, Le, idx, scene.model.bending, grav)
+    if scene.model.has("transport"):
+        f = f + span.span_inertial_forces(e, e_dot, c, c_dot, sec.rhoA, Le, idx)
+    return f
+
+
+def body_forces(bodies, scene: Scene):
+    """Applied forces on the bodies (nb, 3): spring moment on the arm, weights (N, N m)."""
+    f = jnp.zeros_like(bodies)
+    if scene.tensioner is not None:
+        t = scene.tensioner
+        f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
+    if scene.model.has("gravity"):
+        f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene).reshape(-1, 3)[:, 0])
+    return f
+
+
+def spring_moment(theta, scene: Scene):
+    """Moment of the tensioner spring on the arm (N m): -k (theta - theta_0)."""
+    t = scene.tensioner
+    return -t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
+
+
+def full_forces(q, q_dot, scene: Scene, inst: Installation, c=0.0, c_dot=0.0):
+    """Forces on all full coordinates (N, N m) for the listed effects."""
+    E, B = split_full(q, scene)
+    Ed, _ = split_full(q_dot, scene)
+    fs = [span_forces(E[s], Ed[s], s, scene, inst, c, c_dot) for s in range(E.shape[0])]
+    return jnp.concatenate(fs + [body_forces(B, scene).reshape(-1)])
+
+
+# --------------------------------------------------------------------------- reduced equations
+
+
+def transport_speed(scene: Scene, inst: Installation, speed):
+    """Transport speed c (m of unstretched belt per s) for a belt speed ``speed`` (m/s)."""
+    return speed / inst.stretch
+
+
+def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_full=None):
+    """Reduced mass matrix and forces: ``M_ii = J^T M J``, ``F_ii = J^T (F - M gamma)``.
+
+    qi, qi_dot: independent coordinates and rates; speed: belt speed (m/s).
+    Returns (M_ii, F_ii) in kg / kg m^2 and N / N m.
+    """
+    phi = lambda x: full_coordinates(x, scene, inst)  # noqa: E731
+    q, v = jax.jvp(phi, (qi,), (qi_dot,))
+    J = jax.jacfwd(phi)(qi)
+    _, gamma = jax.jvp(lambda x: jax.jvp(phi, (x,), (qi_dot,))[1], (qi,), (qi_dot,))
+    M = full_mass_matrix(scene, inst) if M_full is None else M_full
+    c = transport_speed(scene, inst, speed)
+    F = full_forces(q, v, scene, inst, c)
+    return J.T @ M @ J, J.T @ (F - M @ gamma)
+
+
+def reduced_forces(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_full=None):
+    """F_ii only (N, N m); cheaper than :func:`reduced_system` when the mass is not needed."""
+    return reduced_system(qi, qi_dot, scene, inst, speed, M_full)[1]
+
+
+def static_residual(qi, scene: Scene, inst: Installation, speed=0.0):
+    """Static (steady-motion) residual F_ii(q_i, 0) (N, N m); zero at equilibrium."""
+    phi = lambda x: full_coordinates(x, scene, inst)  # noqa: E731
+    q, vjp = jax.vjp(phi, qi)
+    c = transport_speed(scene, inst, speed)
+    F = full_forces(q, jnp.zeros_like(q), scene, inst, c)
+    return vjp(F)[0]
+
+
+# --------------------------------------------------------------------------- outputs at a state
+
+
+def span_tension_profile(e, EA, Le, N):
+    """Axial force EA eps |r'| (N) at each element's midpoint of a span, shape (N,)."""
+    idx = span.element_index(N)
+
+    def one(ee):
+        rp = ancf.slope(ee, 0.5, Le)
+        lam = jnp.sqrt(rp @ rp)
+        return EA * 0.5 * (lam**2 - 1.0) * lam
+
+    return jax.vmap(one)(e[idx])
+
+
+def span_tensions(q, scene: Scene, inst: Installation):
+    """Mean axial force of each span (N), route order."""
+    E, _ = split_full(q, scene)
+    N = scene.model.elements_per_span
+    Le = element_length(scene, inst)
+    return jnp.stack([jnp.mean(span_tension_profile(E[s], scene.belt.EA, Le[s], N)) for s in range(E.shape[0])])
+
+
+def hub_forces(q, scene: Scene, inst: Installation, speed=0.0):
+    """Force of the belt on each route entry's hub, (n, 2) N, at a steady state.
+
+    The force a span exerts on the pulley holding its end node is the span's
+    generalized force on that node's position (elastic, transport momentum flux
+    and weight as listed); the hub force sums both spans touching the pulley.
+    """
+    E, _ = split_full(q, scene)
+    n = E.shape[0]
+    c = transport_speed(scene, inst, speed)
+    out = jnp.zeros((n, 2), dtype=q.dtype)
+    for s in range(n):
+        f = span_forces(E[s], jnp.zeros_like(E[s]), s, scene, inst, c)
+        out = out.at[s].add(f[:2]).at[(s + 1) % n].add(f[-4:-2])
+    return out
+
+
+def full_span_lengths(q, scene: Scene):
+    """Chord length of each span between its end nodes (m), route order."""
+    E, _ = split_full(q, scene)
+    return jnp.linalg.norm(E[:, -4:-2] - E[:, :2], axis=1)

@@ -1,0 +1,269 @@
+"""Modal analysis of a drive about its static (steady-motion) equilibrium.
+
+The drive's reduced equations (:mod:`beltjax.drive`) are linearised by autodiff
+at the equilibrium of :mod:`beltjax.statics`:
+
+    M = J^T M_full J,   K = -dF_ii/dq_i,   G = -dF_ii/dq_i_dot
+
+(``G`` is the gyroscopic matrix of the moving belt; ``K`` holds the elastic,
+geometric and centrifugal stiffness).  At rest the problem is symmetric
+(Cholesky + ``eigh``); at a belt speed it is gyroscopic and is solved in the
+modal basis of (M, K) with the rigid-body modes (a drive whose pulleys are all
+free turns as a whole at no cost) split off exactly: the belt's rigid sliding
+has K v = 0 and G v = 0, so the remaining system has K positive definite and
+the structured skew-symmetric route of :mod:`beltjax.modal` applies, with
+exactly imaginary eigenvalues, under ``jit`` and ``vmap`` (Campbell diagrams).
+A drive past its critical speed is reported unstable, never given frequencies.
+
+Each mode is labelled by the share of its kinetic energy in each span's
+transverse and longitudinal motion and in each rigid body's motion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import ancf, drive, modal, span, statics
+from beltjax.scene import Scene
+
+#: a mode below this frequency (Hz) is a rigid-body mode
+RIGID_HZ = 1e-2
+#: share of a class's energy above which a span/body is named in a label
+NAME_SHARE = 0.25
+
+
+def n_rigid_modes(scene: Scene) -> int:
+    """Number of zero-frequency modes: 1 when every pulley is free (the belt turns as a whole)."""
+    return 1 if all(drive.is_free(scene)) else 0
+
+
+def linearise(qi, scene: Scene, inst, speed=0.0):
+    """Reduced M (kg, kg m^2), G (kg/s...) and K (N/m, N m/rad...) at the state qi."""
+    z = jnp.zeros_like(qi)
+    M_full = drive.full_mass_matrix(scene, inst)
+    M, _ = drive.reduced_system(qi, z, scene, inst, speed, M_full)
+    K = -jax.jacfwd(lambda q: drive.reduced_forces(q, z, scene, inst, speed, M_full))(qi)
+    M = 0.5 * (M + M.T)
+    K = 0.5 * (K + K.T)
+    if scene.model.has("transport"):
+        G = -jax.jacfwd(lambda v: drive.reduced_forces(qi, v, scene, inst, speed, M_full))(z)
+        G = 0.5 * (G - G.T)
+    else:
+        G = jnp.zeros_like(M)
+    return M, G, K
+
+
+def _modes_core(M, G, K, n_rigid: int, gyroscopic: bool):
+    """Pure-JAX modes: (stable, freqs_hz ascending, complex shapes (n, n)).
+
+    Rigid modes first (0 Hz).  Stable means every flexible omega^2 > 0 (K
+    positive definite on the flexible subspace).
+    """
+    omega2, V = modal.symmetric_modes(M, K)
+    flex2 = omega2[n_rigid:]
+    stable = jnp.all(flex2 > 0)
+    if not gyroscopic:
+        f = jnp.sqrt(jnp.clip(omega2, 0.0, None)) / (2 * jnp.pi)
+        f = f.at[:n_rigid].set(0.0)
+        return stable, f, V.astype(jnp.complex128)
+    T = V[:, n_rigid:]
+    Gz = T.T @ G @ T
+    Kz = jnp.diag(jnp.where(flex2 > 0, flex2, 1.0))
+    Mz = jnp.eye(T.shape[1])
+    ok, omega, Z = modal._skew_modes(Mz, Gz, Kz)
+    f = jnp.concatenate([jnp.zeros(n_rigid), omega / (2 * jnp.pi)])
+    shapes = jnp.concatenate([V[:, :n_rigid].astype(jnp.complex128), T @ Z], axis=1)
+    return stable & ok, f, shapes
+
+
+@partial(jax.jit, static_argnames=("gyroscopic",))
+def _frequencies(scene: Scene, speed, gyroscopic: bool):
+    qi, inst, info = statics.equilibrium(scene, speed=speed)
+    M, G, K = linearise(qi, scene, inst, speed)
+    stable, f, shapes = _modes_core(M, G, K, n_rigid_modes(scene), gyroscopic)
+    return dict(stable=stable, freqs=f, shapes=shapes, qi=qi, inst=inst, converged=info[0] > 0.5, M=M, G=G, K=K)
+
+
+def frequencies(scene: Scene, speed=None):
+    """Natural frequencies (Hz, ascending, rigid modes included) at belt speed ``speed`` (m/s).
+
+    Pure and differentiable (statics by implicit differentiation, symmetric
+    eigenvalues); NaN where the drive is unstable.  Use on distinct
+    eigenvalues or symmetric functions of repeated ones for gradients.
+    """
+    speed = drive.belt_speed(scene) if speed is None else speed
+    qi, inst, _ = statics.equilibrium(scene, speed=speed)
+    M, G, K = linearise(qi, scene, inst, speed)
+    gyro = scene.model.has("transport")
+    stable, f, _ = _modes_core(M, G, K, n_rigid_modes(scene), gyro)
+    return jnp.where(stable, f, jnp.nan)
+
+
+# --------------------------------------------------------------------------- labels
+
+
+def _ordinal(n):
+    return modal.ordinal(int(n))
+
+
+def _half_waves(w):
+    """Half-waves of a nodal displacement profile: sign changes (ignoring small values) + 1."""
+    w = np.asarray(w, dtype=float)
+    big = np.abs(w) > 0.1 * np.max(np.abs(w)) if np.max(np.abs(w)) > 0 else np.zeros_like(w, bool)
+    s = np.sign(w[big])
+    return int(np.sum(s[1:] != s[:-1])) + 1 if s.size else 1
+
+
+def _fine_profile(u, Le, N, per_element: int = 8):
+    """Displacement profile along a span from nodal (value, slope) pairs, by the cubic shape functions."""
+    xi = (np.arange(per_element) + 0.5) / per_element
+    S = np.asarray(jax.vmap(lambda x: ancf.shape_functions(x, Le))(jnp.asarray(xi)))  # (p, 4)
+    nodes = u.reshape(N + 1, 2, -1)
+    elem = np.concatenate([nodes[:-1], nodes[1:]], axis=1)  # (N, 4, modes)
+    return np.einsum("pk,ekm->epm", S, elem).reshape(N * per_element, -1)
+
+
+def energy_shares(shapes, qi, scene: Scene, inst):
+    """Kinetic-energy shares of each mode: dict name -> (n_modes,) array summing to 1.
+
+    Names: "<span> transverse", "<span> longitudinal" per span, and each body's
+    name (pulleys, "tensioner" idler, "tensioner arm").  Also returns the
+    per-span transverse and longitudinal profiles, (n_modes, n_spans, n_points).
+    """
+    J = np.asarray(jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(jnp.asarray(qi)))
+    V = J @ np.asarray(shapes)  # full-coordinate shapes (complex)
+    n = len(scene.route.order)
+    N = scene.model.elements_per_span
+    ns = 4 * (N + 1)
+    Le = np.asarray(drive.element_length(scene, inst))
+    idx = span.element_index(N)
+    t = np.asarray(inst.span_tangent)
+    nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
+    shares, trans, longi = {}, [], []
+    names = drive.span_names(scene)
+    for s in range(n):
+        Ms = np.asarray(span.span_mass_matrix(scene.belt.rhoA, Le[s], idx))[0::2, 0::2]
+        blk = V[s * ns : (s + 1) * ns].reshape(N + 1, 2, 2, -1)  # node, (pos, slope), (x, y), mode
+        ul = np.einsum("nkdm,d->nkm", blk, t[s]).reshape(2 * (N + 1), -1)
+        ut = np.einsum("nkdm,d->nkm", blk, nrm[s]).reshape(2 * (N + 1), -1)
+        shares[f"{names[s]} longitudinal"] = np.real(np.einsum("im,ij,jm->m", ul.conj(), Ms, ul))
+        shares[f"{names[s]} transverse"] = np.real(np.einsum("im,ij,jm->m", ut.conj(), Ms, ut))
+        trans.append(_fine_profile(ut, Le[s], N))
+        longi.append(_fine_profile(ul, Le[s], N))
+    B = V[n * ns :].reshape(-1, 3, V.shape[1])
+    mass = np.asarray(drive.body_masses(scene)).reshape(-1, 3)
+    for b, name in enumerate(drive.body_names(scene)):
+        shares[name] = np.real(np.einsum("km,k,km->m", B[b].conj(), mass[b], B[b]))
+    total = sum(shares.values())
+    total = np.where(total > 0, total, 1.0)
+    shares = {k: v / total for k, v in shares.items()}
+    return shares, np.stack(trans).transpose(2, 0, 1), np.stack(longi).transpose(2, 0, 1)
+
+
+def label_modes(freqs, shapes, qi, scene: Scene, inst):
+    """Labels ("1st transverse crank-alternator", "2nd rotational (alternator, crank)", "rigid body").
+
+    Returns (labels, shares dict).  Transverse and longitudinal orders count the
+    half-waves of the dominant span's profile; rotational orders count modes.
+    """
+    shares, trans, longi = energy_shares(shapes, qi, scene, inst)
+    names = drive.span_names(scene)
+    bodies = drive.body_names(scene)
+    # align the phase of complex modes so real parts carry them
+    def real_profile(p):
+        ph = np.angle(np.sum(p**2)) / 2
+        return np.real(p * np.exp(-1j * ph))
+
+    labels, n_rot = [], 0
+    for m, f in enumerate(np.asarray(freqs)):
+        if f < RIGID_HZ:
+            labels.append("rigid body")
+            continue
+        tr = np.array([shares[f"{s} transverse"][m] for s in names])
+        lo = np.array([shares[f"{s} longitudinal"][m] for s in names])
+        ro = np.array([shares[b][m] for b in bodies])
+        kind = int(np.argmax([tr.sum(), lo.sum(), ro.sum()]))
+        if kind == 2:
+            n_rot += 1
+            order = np.argsort(-ro)
+            who = [bodies[i] for i in order if ro[i] >= NAME_SHARE * ro.sum()]
+            labels.append(f"{_ordinal(n_rot)} rotational ({', '.join(who)})")
+            continue
+        part = tr if kind == 0 else lo
+        prof = trans if kind == 0 else longi
+        order = np.argsort(-part)
+        who = [names[i] for i in order if part[i] >= NAME_SHARE * part.sum()]
+        k = _half_waves(real_profile(prof[m, order[0]]))
+        word = "transverse" if kind == 0 else "longitudinal"
+        labels.append(f"{_ordinal(k)} {word} {' + '.join(who)}")
+    return labels, shares
+
+
+# --------------------------------------------------------------------------- user-facing result
+
+
+@dataclass
+class ModalResult:
+    """Modes of a drive (see :func:`analyse_modes`).
+
+    frequencies_hz ascending (rigid modes included, 0 Hz); labels; stable;
+    unstable_eigenvalues (1/s) when not stable; energy_shares: name -> per-mode
+    kinetic-energy share; speed_m_s; mode_shapes: (n_independent, n_modes),
+    real parts, unit max; statics: the :class:`beltjax.statics.StaticResult`.
+    """
+
+    frequencies_hz: np.ndarray
+    labels: list[str]
+    stable: bool
+    unstable_eigenvalues: np.ndarray
+    energy_shares: dict
+    speed_m_s: float
+    n_independent: int
+    mode_shapes: np.ndarray = field(repr=False)
+    statics: object = field(repr=False, default=None)
+
+    def to_json(self, n_modes: int | None = None) -> dict:
+        """modal.json contents (first n_modes modes, all by default)."""
+        k = len(self.frequencies_hz) if n_modes is None else min(n_modes, len(self.frequencies_hz))
+        return {
+            "speed_m_s": self.speed_m_s,
+            "stable": self.stable,
+            "n_independent_coordinates": self.n_independent,
+            "frequencies_hz": [float(x) for x in self.frequencies_hz[:k]],
+            "labels": self.labels[:k],
+            "energy_shares": {name: [round(float(x), 4) for x in v[:k]] for name, v in self.energy_shares.items()},
+            "unstable_eigenvalues": [[float(z.real), float(z.imag)] for z in self.unstable_eigenvalues],
+        }
+
+
+def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
+    """Natural frequencies, labelled mode shapes and stability of a drive at belt speed ``speed`` (m/s).
+
+    Runs the statics first (its one-line errors apply).  At a speed with the
+    ``transport`` effect the gyroscopic problem is solved; an unstable drive
+    gets ``stable=False``, its unstable eigenvalues and no frequencies.
+    """
+    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
+    st = statics.analyse_statics(scene, v)
+    gyro = scene.model.has("transport") and v != 0.0
+    out = _frequencies(drive.canonical(scene), v, gyro)
+    stable = bool(out["stable"])
+    n = drive.n_independent(scene)
+    if not stable:
+        lam, _ = modal.gyroscopic_eigen(out["M"], out["G"], out["K"])
+        ok, _, _, unstable = modal.split_gyroscopic(lam, np.zeros((n, lam.shape[0])))
+        if ok:  # only round-off: accept
+            stable = True
+        else:
+            return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st)
+    freqs = np.asarray(out["freqs"])
+    shapes = np.asarray(out["shapes"])
+    labels, shares = label_modes(freqs, shapes, out["qi"], scene, out["inst"])
+    Vr = np.real(shapes * np.exp(-1j * np.angle(np.sum(shapes**2, axis=0)) / 2))
+    Vr = Vr / np.maximum(np.max(np.abs(Vr), axis=0, keepdims=True), 1e-300)
+    return ModalResult(freqs, labels, True, np.zeros(0, complex), shares, v, n, Vr, st)

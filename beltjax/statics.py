@@ -1,0 +1,396 @@
+"""Setting the belt and the static (steady-motion) equilibrium of a drive.
+
+Installation (:func:`install`)
+------------------------------
+At installation, with the drive at rest and unloaded, the belt carries one
+uniform tension ``T`` at stretch ``lam`` (``EA (lam^2 - 1)/2 * lam = T``) along
+its whole path, and its unstretched length is ``path / lam``.
+
+* two-pulley or fixed-centre drive: given ``static_tension`` the unstretched
+  length follows; given ``length`` the stretch ``lam = path / length`` and the
+  tension follow;
+* tensioner drive: the arm angle balances the spring moment ``-k (theta -
+  theta_0)`` against the belt's moment ``T (r x (t_out - t_in))`` on the idler.
+  Given ``static_tension``, the arm angle solves that balance and the length
+  follows; given ``length``, the tension depends on the arm angle through the
+  path, ``lam(theta) = path(theta) / length``, and both are solved together.
+
+The scalar arm balance is bracketed on a grid of arm angles (all of them, as
+pure ``jax.numpy``, so that it runs under ``jit`` and ``vmap``), the stable root
+(moment decreasing through zero) nearest the scene's ``arm_angle_deg`` (or the
+spring's free angle) is refined by Newton, and derivatives come from the
+implicit function theorem (``jax.lax.custom_root``).
+
+Equilibrium (:func:`equilibrium`)
+---------------------------------
+Newton on the reduced residual ``F_ii(q_i, 0) = 0`` of :mod:`beltjax.drive`
+from the installed straight-span state, with a backtracking line search and,
+for hard cases, speed (load) stepping; implicit differentiation again through
+``custom_root``, so the equilibrium is differentiable with respect to every
+scene parameter.  At a belt speed the equilibrium is the steady motion (the
+centrifugal terms of the moving belt included when ``transport`` is listed).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import drive, span
+from beltjax.drive import Installation
+from beltjax.scene import TENSIONER, Scene
+
+#: largest installation strain accepted (2 %, far beyond any belt's working strain): a
+#: belt that would need more "cannot be fitted"
+MAX_INSTALL_STRAIN = 0.02
+#: arm angles scanned for the tensioner balance (rad, either side of the guess)
+_ARM_GRID = 1440
+
+
+class StaticsError(ValueError):
+    """A drive that has no admissible static state; one line naming the key or cause."""
+
+    def __init__(self, message: str, key: str = ""):
+        super().__init__(f"{key}: {message}" if key else message)
+        self.key = key
+
+
+# --------------------------------------------------------------------------- installation
+
+
+def _cross(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _tension_of_stretch(lam, EA):
+    return 0.5 * EA * (lam**2 - 1.0) * lam
+
+
+def _arm_terms(theta, scene: Scene):
+    """(path length m, belt moment per unit tension m, wrap on the idler rad) at arm angle theta."""
+    g = scene.geometry(theta, check=False)
+    k = scene.route.order.index(TENSIONER)
+    t_out, t_in = g.span_tangent[k], g.span_tangent[k - 1]
+    t = scene.tensioner
+    r = t.idler_center(theta) - t.pivot
+    return g.length, _cross(r, t_out - t_in), g.wrap[k]
+
+
+def _arm_residual(theta, scene: Scene):
+    """Moment balance on the arm (N m) at installation; its root is the installed arm angle."""
+    path, arm, _ = _arm_terms(theta, scene)
+    b, t = scene.belt, scene.tensioner
+    if b.static_tension is not None:
+        T = b.static_tension
+    else:
+        T = _tension_of_stretch(path / b.length, b.EA)
+    return T * arm - t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
+
+
+def _arm_guess(scene: Scene):
+    t = scene.tensioner
+    return jnp.deg2rad(t.arm_angle_deg if t.arm_angle_deg is not None else t.spring_preload_deg)
+
+
+def _bracket_arm(scene: Scene):
+    """Grid scan for the stable root of the arm balance nearest the guess (rad; nan if none)."""
+    guess = _arm_guess(scene)
+    th = guess + jnp.linspace(-jnp.pi, jnp.pi, _ARM_GRID + 1)
+    r = jax.vmap(lambda x: _arm_residual(x, scene))(th)
+    path, _, wrap = jax.vmap(lambda x: _arm_terms(x, scene))(th)
+    ok = jnp.isfinite(r) & (wrap > 0) & (wrap < jnp.pi)
+    if scene.belt.length is not None:
+        ok = ok & (path > scene.belt.length)
+    down = ok[:-1] & ok[1:] & (r[:-1] > 0) & (r[1:] <= 0)
+    # linear interpolation inside each bracketing cell
+    x = th[:-1] + r[:-1] / jnp.where(down, r[:-1] - r[1:], 1.0) * (th[1:] - th[:-1])
+    dist = jnp.where(down, jnp.abs(x - guess), jnp.inf)
+    j = jnp.argmin(dist)
+    return jnp.where(jnp.isfinite(dist[j]), x[j], jnp.nan), th[j], th[j + 1]
+
+
+def _solve_arm(scene: Scene):
+    def f(theta):
+        return _arm_residual(theta, scene)
+
+    def solve(f, x0):
+        x0, lo, hi = jax.lax.stop_gradient(_bracket_arm(scene))
+
+        def body(_, x):
+            step = f(x) / jax.grad(f)(x)
+            return jnp.clip(x - step, lo, hi)  # the root lies in the bracketing cell
+
+        return jax.lax.fori_loop(0, 30, body, x0)
+
+    return jax.lax.custom_root(f, _arm_guess(scene), solve, lambda g, y: y / g(1.0))
+
+
+def install(scene: Scene) -> Installation:
+    """The installed belt: arm angle, stretch, tension, unstretched length and path.
+
+    Pure and differentiable with respect to every scene parameter; use
+    :func:`check_installation` on concrete results for one-line errors.
+    """
+    b = scene.belt
+    if scene.tensioner is not None:
+        theta = _solve_arm(scene)
+    else:
+        theta = jnp.zeros(())
+    centers, radii = scene.layout(theta)
+    g = scene.geometry(theta, check=False)
+    if b.static_tension is not None:
+        T = jnp.asarray(b.static_tension)
+        lam = span.stretch_for_tension(T, b.EA)
+        L = g.length / lam
+    else:
+        L = jnp.asarray(b.length)
+        lam = g.length / L
+        T = _tension_of_stretch(lam, b.EA)
+    return Installation(
+        arm_angle=theta, stretch=lam, tension=T, belt_length=L, centers=centers, radii=radii,
+        span_start=g.span_start, span_end=g.span_end, span_tangent=g.span_tangent,
+        span_length=g.span_length, wrap=g.wrap,
+    )
+
+
+def check_installation(scene: Scene, inst: Installation) -> None:
+    """Raise :class:`StaticsError` (one line) if the belt cannot be installed as given."""
+    b = scene.belt
+    key = "belt.length" if b.length is not None else "belt.static_tension"
+    if scene.tensioner is not None and not math.isfinite(float(inst.arm_angle)):
+        th = _arm_guess(scene) + jnp.linspace(-jnp.pi, jnp.pi, _ARM_GRID + 1)
+        path, _, wrap = jax.vmap(lambda x: _arm_terms(x, scene))(th)
+        r = jax.vmap(lambda x: _arm_residual(x, scene))(th)
+        ok = np.asarray(jnp.isfinite(r) & (wrap > 0) & (wrap < jnp.pi))
+        if b.length is not None and not np.any(ok & (np.asarray(path) > float(b.length))):
+            raise StaticsError(
+                f"belt too long to fit: {float(b.length):.6g} m is longer than the belt path at every "
+                f"tensioner arm angle (longest {float(np.max(np.where(ok, path, 0))):.6g} m); it would hang slack",
+                key,
+            )
+        raise StaticsError(
+            "no tensioner arm angle balances the spring against the belt (belt too short, or the "
+            "spring too weak, for this layout); check the belt, spring_preload_deg and spring_stiffness",
+            key,
+        )
+    lam = float(inst.stretch)
+    if not math.isfinite(lam) or lam <= 1.0:
+        raise StaticsError(
+            f"belt too long to fit: the unstretched length {float(inst.belt_length):.6g} m is not shorter "
+            f"than the belt path {float(inst.belt_length * inst.stretch):.6g} m, so the belt would hang slack",
+            key,
+        )
+    if lam - 1.0 > MAX_INSTALL_STRAIN:
+        raise StaticsError(
+            f"belt too short to fit: it would have to stretch {100 * (lam - 1):.3g} % (tension "
+            f"{float(inst.tension):.4g} N) to reach round the pulleys (limit {100 * MAX_INSTALL_STRAIN:.3g} %)",
+            key,
+        )
+
+
+# --------------------------------------------------------------------------- equilibrium
+
+
+def _newton(f, q0, max_iter: int = 40, xtol: float = 1e-11):
+    """Newton with a backtracking line search on |f|; returns (q, (converged, iterations, |f|)) (floats)."""
+    alphas = 0.5 ** jnp.arange(8.0)
+
+    def cond(state):
+        _, it, done, _ = state
+        return (~done) & (it < max_iter)
+
+    def body(state):
+        q, it, _, _ = state
+        R = f(q)
+        K = jax.jacfwd(f)(q)
+        d = -jnp.linalg.solve(K, R)
+        n0 = jnp.linalg.norm(R)
+        norms = jax.vmap(lambda a: jnp.linalg.norm(f(q + a * d)))(alphas)
+        good = jnp.isfinite(norms) & (norms < (1.0 - 1e-4 * alphas) * n0)
+        k = jnp.where(jnp.any(good), jnp.argmax(good), jnp.argmin(jnp.where(jnp.isfinite(norms), norms, jnp.inf)))
+        step = alphas[k] * d
+        q = q + step
+        small = jnp.max(jnp.abs(step)) < xtol * (1.0 + jnp.max(jnp.abs(q)))
+        return q, it + 1, small | ~jnp.all(jnp.isfinite(step)), norms[k]
+
+    q, it, done, rn = jax.lax.while_loop(cond, body, (q0, 0, False, jnp.inf))
+    conv = done & jnp.all(jnp.isfinite(q))
+    # diagnostics as floats: custom_root's derivative rule needs float auxiliaries
+    return q, (conv.astype(q.dtype), jnp.asarray(it, q.dtype), rn)
+
+
+def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, steps: int = 1):
+    """Static (steady-motion) equilibrium: independent coordinates and diagnostics.
+
+    speed: belt speed (m/s; default from the drive pulley's speed_rpm);
+    steps: speed (load) steps from rest to ``speed``.  Returns
+    ``(qi, inst, (converged, iterations, residual_norm))`` (floats; converged is 1.0 or 0.0); differentiable in
+    every scene parameter by the implicit function theorem.
+    """
+    inst = install(scene) if inst is None else inst
+    speed = drive.belt_speed(scene) if speed is None else speed
+    full0 = drive.installed_coordinates(scene, inst)
+    dofs = drive.static_dofs(scene)
+    q0 = full0[dofs]
+
+    def residual(q, v):
+        return drive.static_residual(full0.at[dofs].set(q), scene, inst, v)[dofs]
+
+    def f(q):
+        return residual(q, speed)
+
+    def solve(f, q_init):
+        if steps == 1:
+            return _newton(f, q_init)
+
+        def stage(q, frac):
+            g = lambda x: residual(x, speed * frac)  # noqa: E731
+            q, info = _newton(g, q)
+            return q, info
+
+        q, infos = jax.lax.scan(stage, q_init, jnp.arange(1, steps + 1) / steps)
+        return q, jax.tree.map(lambda a: a[-1], infos)
+
+    def tangent_solve(g, y):
+        return jnp.linalg.solve(jax.jacfwd(g)(y), y)
+
+    q, info = jax.lax.custom_root(f, q0, solve, tangent_solve, has_aux=True)
+    return full0.at[dofs].set(q), inst, info
+
+
+# --------------------------------------------------------------------------- the user-facing result
+
+
+@dataclass
+class StaticResult:
+    """Static state of a drive (SI units; route order); see :func:`analyse_statics`.
+
+    span_names; span_tensions_N: mean axial force per span; span_lengths_m;
+    belt_length_m: unstretched belt length; installation_tension_N; stretch;
+    hub_forces_N: force of the belt on each hub {name: [Fx, Fy]} (the tensioner
+    idler as "tensioner"); tensioner_angle_deg, spring_moment_Nm,
+    tensioner_pivot_force_N (None without a tensioner); wrap_angles_deg;
+    speed_m_s; converged, iterations.
+    """
+
+    span_names: list[str]
+    span_tensions_N: np.ndarray
+    span_lengths_m: np.ndarray
+    belt_length_m: float
+    installation_tension_N: float
+    stretch: float
+    hub_forces_N: dict
+    wrap_angles_deg: dict
+    speed_m_s: float
+    tensioner_angle_deg: float | None
+    spring_moment_Nm: float | None
+    tensioner_pivot_force_N: list | None
+    iterations: int
+    qi: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)
+    inst: Installation = field(repr=False)
+
+    def to_json(self) -> dict:
+        """statics.json contents."""
+        d = {
+            "span_names": self.span_names,
+            "span_tensions_N": [float(x) for x in self.span_tensions_N],
+            "span_lengths_m": [float(x) for x in self.span_lengths_m],
+            "belt_length_m": self.belt_length_m,
+            "installation_tension_N": self.installation_tension_N,
+            "stretch": self.stretch,
+            "hub_forces_N": {k: [float(v[0]), float(v[1])] for k, v in self.hub_forces_N.items()},
+            "hub_force_magnitudes_N": {k: float(np.hypot(*v)) for k, v in self.hub_forces_N.items()},
+            "wrap_angles_deg": self.wrap_angles_deg,
+            "speed_m_s": self.speed_m_s,
+            "newton_iterations": self.iterations,
+        }
+        if self.tensioner_angle_deg is not None:
+            d["tensioner_angle_deg"] = self.tensioner_angle_deg
+            d["spring_moment_Nm"] = self.spring_moment_Nm
+            d["tensioner_pivot_force_N"] = self.tensioner_pivot_force_N
+        return d
+
+
+_install_jit = jax.jit(install)
+
+
+@jax.jit
+def _statics_core(scene: Scene, speed):
+    qi, inst, info = equilibrium(scene, speed=speed)
+    return _outputs(scene, qi, inst, speed), info
+
+
+@jax.jit
+def _statics_stepped(scene: Scene, speed):
+    qi, inst, info = equilibrium(scene, speed=speed, steps=8)
+    return _outputs(scene, qi, inst, speed), info
+
+
+def _outputs(scene, qi, inst, speed):
+    q = drive.full_coordinates(qi, scene, inst)
+    _, theta = drive.angles_and_arm(qi, scene, inst)
+    return dict(
+        qi=qi, q=q, inst=inst, theta=theta,
+        tensions=drive.span_tensions(q, scene, inst),
+        hubs=drive.hub_forces(q, scene, inst, speed),
+        lengths=drive.full_span_lengths(q, scene),
+    )
+
+
+def analyse_statics(scene: Scene, speed: float | None = None) -> StaticResult:
+    """Static state of the drive at belt speed ``speed`` (m/s; default from speed_rpm).
+
+    Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
+    Newton iteration fails even with speed stepping, or a span would go slack.
+    """
+    scene = drive.canonical(scene)
+    inst = _install_jit(scene)
+    check_installation(scene, inst)
+    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
+    out, (conv, it, rn) = _statics_core(scene, v)
+    if not float(conv) > 0.5:
+        out, (conv, it, rn) = _statics_stepped(scene, v)
+    if not float(conv) > 0.5:
+        raise StaticsError(f"no static equilibrium found (Newton stalled at residual {float(rn):.3g})", "statics")
+    names = drive.span_names(scene)
+    tensions = np.asarray(out["tensions"])
+    for nm, T in zip(names, tensions):
+        if not T > 0:
+            raise StaticsError(f"span {nm} would go slack (tension {T:.4g} N)", "statics")
+    order = scene.route.order
+    hubs = np.asarray(out["hubs"])
+    inst = out["inst"]
+    res = StaticResult(
+        span_names=names,
+        span_tensions_N=tensions,
+        span_lengths_m=np.asarray(out["lengths"]),
+        belt_length_m=float(inst.belt_length),
+        installation_tension_N=float(inst.tension),
+        stretch=float(inst.stretch),
+        hub_forces_N={order[i]: hubs[i] for i in range(len(order))},
+        wrap_angles_deg={order[i]: float(np.degrees(inst.wrap[i])) for i in range(len(order))},
+        speed_m_s=v,
+        tensioner_angle_deg=None,
+        spring_moment_Nm=None,
+        tensioner_pivot_force_N=None,
+        iterations=int(it),
+        qi=np.asarray(out["qi"]),
+        q=np.asarray(out["q"]),
+        inst=inst,
+    )
+    if scene.tensioner is not None:
+        th = float(out["theta"])
+        res.tensioner_angle_deg = math.degrees(th)
+        res.spring_moment_Nm = float(drive.spring_moment(th, scene))
+        k = order.index(TENSIONER)
+        pivot = hubs[k].copy()
+        if scene.model.has("gravity"):
+            t = scene.tensioner
+            pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
+        res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
+    return res
