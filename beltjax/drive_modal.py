@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import ancf, drive, modal, span, statics
+from beltjax import drive, modal, statics
 from beltjax.scene import Scene
 
 #: a mode below this frequency (Hz) is a rigid-body mode
@@ -86,7 +86,8 @@ def _frequencies(scene: Scene, speed, gyroscopic: bool):
     qi, inst, info = statics.equilibrium(scene, speed=speed)
     M, G, K = linearise(qi, scene, inst, speed)
     stable, f, shapes = _modes_core(M, G, K, n_rigid_modes(scene), gyroscopic)
-    return dict(stable=stable, freqs=f, shapes=shapes, qi=qi, inst=inst, converged=info[0] > 0.5, M=M, G=G, K=K)
+    J = jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(qi)
+    return dict(stable=stable, freqs=f, shapes=shapes, qi=qi, inst=inst, converged=info[0] > 0.5, M=M, G=G, K=K, J=J)
 
 
 def frequencies(scene: Scene, speed=None):
@@ -119,35 +120,50 @@ def _half_waves(w):
     return int(np.sum(s[1:] != s[:-1])) + 1 if s.size else 1
 
 
+def _scalar_mass(rhoA, Le, N):
+    """Assembled scalar mass matrix of a span (one displacement component): the cubic
+    element's consistent mass (eq. 3.9 per component), (2 (N+1), 2 (N+1)), kg."""
+    L = Le
+    m = rhoA * L / 420.0 * np.array(
+        [[156, 22 * L, 54, -13 * L], [22 * L, 4 * L**2, 13 * L, -3 * L**2],
+         [54, 13 * L, 156, -22 * L], [-13 * L, -3 * L**2, -22 * L, 4 * L**2]]
+    )
+    M = np.zeros((2 * (N + 1), 2 * (N + 1)))
+    for e in range(N):
+        M[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += m
+    return M
+
+
 def _fine_profile(u, Le, N, per_element: int = 8):
     """Displacement profile along a span from nodal (value, slope) pairs, by the cubic shape functions."""
-    xi = (np.arange(per_element) + 0.5) / per_element
-    S = np.asarray(jax.vmap(lambda x: ancf.shape_functions(x, Le))(jnp.asarray(xi)))  # (p, 4)
+    x = (np.arange(per_element) + 0.5) / per_element
+    S = np.stack([1 - 3 * x**2 + 2 * x**3, Le * (x - 2 * x**2 + x**3), 3 * x**2 - 2 * x**3, Le * (x**3 - x**2)], 1)
     nodes = u.reshape(N + 1, 2, -1)
     elem = np.concatenate([nodes[:-1], nodes[1:]], axis=1)  # (N, 4, modes)
     return np.einsum("pk,ekm->epm", S, elem).reshape(N * per_element, -1)
 
 
-def energy_shares(shapes, qi, scene: Scene, inst):
+def energy_shares(shapes, qi, scene: Scene, inst, J=None):
     """Kinetic-energy shares of each mode: dict name -> (n_modes,) array summing to 1.
 
     Names: "<span> transverse", "<span> longitudinal" per span, and each body's
     name (pulleys, "tensioner" idler, "tensioner arm").  Also returns the
     per-span transverse and longitudinal profiles, (n_modes, n_spans, n_points).
     """
-    J = np.asarray(jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(jnp.asarray(qi)))
+    if J is None:
+        J = jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(jnp.asarray(qi))
+    J = np.asarray(J)
     V = J @ np.asarray(shapes)  # full-coordinate shapes (complex)
     n = len(scene.route.order)
     N = scene.model.elements_per_span
     ns = 4 * (N + 1)
     Le = np.asarray(drive.element_length(scene, inst))
-    idx = span.element_index(N)
     t = np.asarray(inst.span_tangent)
     nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
     shares, trans, longi = {}, [], []
     names = drive.span_names(scene)
     for s in range(n):
-        Ms = np.asarray(span.span_mass_matrix(scene.belt.rhoA, Le[s], idx))[0::2, 0::2]
+        Ms = _scalar_mass(float(scene.belt.rhoA), float(Le[s]), N)
         blk = V[s * ns : (s + 1) * ns].reshape(N + 1, 2, 2, -1)  # node, (pos, slope), (x, y), mode
         ul = np.einsum("nkdm,d->nkm", blk, t[s]).reshape(2 * (N + 1), -1)
         ut = np.einsum("nkdm,d->nkm", blk, nrm[s]).reshape(2 * (N + 1), -1)
@@ -165,13 +181,13 @@ def energy_shares(shapes, qi, scene: Scene, inst):
     return shares, np.stack(trans).transpose(2, 0, 1), np.stack(longi).transpose(2, 0, 1)
 
 
-def label_modes(freqs, shapes, qi, scene: Scene, inst):
+def label_modes(freqs, shapes, qi, scene: Scene, inst, J=None):
     """Labels ("1st transverse crank-alternator", "2nd rotational (alternator, crank)", "rigid body").
 
     Returns (labels, shares dict).  Transverse and longitudinal orders count the
     half-waves of the dominant span's profile; rotational orders count modes.
     """
-    shares, trans, longi = energy_shares(shapes, qi, scene, inst)
+    shares, trans, longi = energy_shares(shapes, qi, scene, inst, J)
     names = drive.span_names(scene)
     bodies = drive.body_names(scene)
     # align the phase of complex modes so real parts carry them
@@ -263,7 +279,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
             return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st)
     freqs = np.asarray(out["freqs"])
     shapes = np.asarray(out["shapes"])
-    labels, shares = label_modes(freqs, shapes, out["qi"], scene, out["inst"])
+    labels, shares = label_modes(freqs, shapes, out["qi"], scene, out["inst"], out["J"])
     Vr = np.real(shapes * np.exp(-1j * np.angle(np.sum(shapes**2, axis=0)) / 2))
     Vr = Vr / np.maximum(np.max(np.abs(Vr), axis=0, keepdims=True), 1e-300)
     return ModalResult(freqs, labels, True, np.zeros(0, complex), shares, v, n, Vr, st)
