@@ -32,7 +32,7 @@ def _batch(scene: Scene, speeds, n_modes: int):
     def one(v):
         qi, inst, info = statics.equilibrium(scene, speed=v)
         M, G, K = drive_modal.linearise(qi, scene, inst, v)
-        stable, f, _ = drive_modal._modes_core(M, G, K, nr, gyro)
+        stable, f = drive_modal._frequencies_core(M, G, K, nr, gyro, drive_modal.rigid_mode(scene, inst))
         return f[:n_modes], stable & (info[0] > 0.5)
 
     return jax.vmap(one)(speeds)

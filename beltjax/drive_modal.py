@@ -43,49 +43,112 @@ def n_rigid_modes(scene: Scene) -> int:
 
 
 def linearise(qi, scene: Scene, inst, speed=0.0):
-    """Reduced M (kg, kg m^2), G (kg/s...) and K (N/m, N m/rad...) at the state qi."""
-    z = jnp.zeros_like(qi)
-    M_full = drive.full_mass_matrix(scene, inst)
-    M, _ = drive.reduced_system(qi, z, scene, inst, speed, M_full)
-    K = -jax.jacfwd(lambda q: drive.reduced_forces(q, z, scene, inst, speed, M_full))(qi)
+    """Reduced M (kg, kg m^2), G (kg m/s-like) and K (N/m, N m/rad...) at the state qi.
+
+    M = J^T M_full J; K = -d F_ii(q_i, 0)/d q_i (the static residual, so geometric,
+    elastic and centrifugal stiffness and the curvature of the kinematic map are
+    all in); G = -J^T (dF/dq_dot) J (gamma is quadratic in the rates: no linear part).
+    """
+    phi = lambda x: drive.full_coordinates(x, scene, inst)  # noqa: E731
+    J = jax.jacfwd(phi)(qi)
+    M = J.T @ drive.full_mass_matrix(scene, inst) @ J
+    K = -jax.jacfwd(lambda q: drive.static_residual(q, scene, inst, speed))(qi)
     M = 0.5 * (M + M.T)
     K = 0.5 * (K + K.T)
     if scene.model.has("transport"):
-        G = -jax.jacfwd(lambda v: drive.reduced_forces(qi, v, scene, inst, speed, M_full))(z)
+        q = phi(qi)
+        c = drive.transport_speed(scene, inst, speed)
+        Gf = -jax.jacfwd(lambda v: drive.full_forces(q, v, scene, inst, c))(jnp.zeros_like(q))
+        G = J.T @ Gf @ J
         G = 0.5 * (G - G.T)
     else:
         G = jnp.zeros_like(M)
     return M, G, K
 
 
-def _modes_core(M, G, K, n_rigid: int, gyroscopic: bool):
+def rigid_mode(scene: Scene, inst):
+    """The belt's rigid slide in independent coordinates (1 m of belt along the route).
+
+    Every free pulley turns by 1 / (s R) rad, every interior span node moves 1 m along
+    its span; with straight spans K v = 0 and G v = 0 exactly.
+    """
+    free = drive.is_free(scene)
+    senses = np.asarray(scene.route.senses)
+    rigid = [1.0 / (senses[i] * inst.radii[i]) for i, f in enumerate(free) if f]
+    if scene.tensioner is not None:
+        rigid.append(jnp.zeros(()))
+    N = scene.model.elements_per_span
+    n = len(scene.route.order)
+    node = jnp.concatenate([inst.span_tangent, jnp.zeros((n, 2))], axis=1)  # (n, 4): position, slope
+    spans = jnp.concatenate(
+        [jnp.zeros((n, 2)), jnp.tile(node, (1, N - 1)), jnp.zeros((n, 2))], axis=1
+    )
+    return jnp.concatenate([jnp.stack(rigid), spans.reshape(-1)])
+
+
+def _complement(w):
+    """Orthonormal basis (n, n-1) of the complement of the vector w (a Householder reflector)."""
+    w = w / jnp.linalg.norm(w)
+    e1 = jnp.zeros_like(w).at[0].set(1.0)
+    sgn = jnp.where(w[0] >= 0, 1.0, -1.0)
+    u = w + sgn * e1
+    u = u / jnp.linalg.norm(u)
+    H = jnp.eye(w.shape[0]) - 2.0 * jnp.outer(u, u)
+    return H[:, 1:]
+
+
+def _project_rigid(M, G, K, n_rigid, v0):
+    if not n_rigid:
+        return jnp.eye(M.shape[0]), M, G, K
+    T = _complement(M @ v0)
+    return T, T.T @ M @ T, T.T @ G @ T, T.T @ K @ T
+
+
+def _frequencies_core(M, G, K, n_rigid: int, gyroscopic: bool, v0=None):
+    """Pure-JAX frequencies only (stable, freqs_hz ascending, rigid modes first)."""
+    if not gyroscopic:
+        omega2 = jnp.linalg.eigvalsh(_mass_normalised(M, K))
+        f = jnp.sqrt(jnp.clip(omega2, 0.0, None)) / (2 * jnp.pi)
+        return jnp.all(omega2[n_rigid:] > 0), f.at[:n_rigid].set(0.0)
+    _, Mz, Gz, Kz = _project_rigid(M, G, K, n_rigid, v0)
+    ok, omega = modal.skew_frequencies(0.5 * (Mz + Mz.T), 0.5 * (Gz - Gz.T), 0.5 * (Kz + Kz.T))
+    return ok, jnp.concatenate([jnp.zeros(n_rigid), omega / (2 * jnp.pi)])
+
+
+def _mass_normalised(M, K):
+    Lc = jnp.linalg.cholesky(M)
+    X = jax.scipy.linalg.solve_triangular(Lc, K, lower=True)
+    A = jax.scipy.linalg.solve_triangular(Lc, X.T, lower=True)
+    return 0.5 * (A + A.T)
+
+
+def _modes_core(M, G, K, n_rigid: int, gyroscopic: bool, v0=None):
     """Pure-JAX modes: (stable, freqs_hz ascending, complex shapes (n, n)).
 
     Rigid modes first (0 Hz).  Stable means every flexible omega^2 > 0 (K
-    positive definite on the flexible subspace).
+    positive definite on the flexible subspace).  The gyroscopic route needs the
+    rigid mode ``v0`` when ``n_rigid`` is 1 (see :func:`rigid_mode`): the system is
+    restricted to the M-orthogonal complement of v0, where K is positive definite.
     """
-    omega2, V = modal.symmetric_modes(M, K)
-    flex2 = omega2[n_rigid:]
-    stable = jnp.all(flex2 > 0)
     if not gyroscopic:
+        omega2, V = modal.symmetric_modes(M, K)
+        stable = jnp.all(omega2[n_rigid:] > 0)
         f = jnp.sqrt(jnp.clip(omega2, 0.0, None)) / (2 * jnp.pi)
         f = f.at[:n_rigid].set(0.0)
         return stable, f, V.astype(jnp.complex128)
-    T = V[:, n_rigid:]
-    Gz = T.T @ G @ T
-    Kz = jnp.diag(jnp.where(flex2 > 0, flex2, 1.0))
-    Mz = jnp.eye(T.shape[1])
-    ok, omega, Z = modal._skew_modes(Mz, Gz, Kz)
+    T, Mz, Gz, Kz = _project_rigid(M, G, K, n_rigid, v0)
+    ok, omega, Z = modal._skew_modes(0.5 * (Mz + Mz.T), 0.5 * (Gz - Gz.T), 0.5 * (Kz + Kz.T))
     f = jnp.concatenate([jnp.zeros(n_rigid), omega / (2 * jnp.pi)])
-    shapes = jnp.concatenate([V[:, :n_rigid].astype(jnp.complex128), T @ Z], axis=1)
-    return stable & ok, f, shapes
+    rig = (v0 / jnp.max(jnp.abs(v0)))[:, None] if n_rigid else jnp.zeros((M.shape[0], 0))
+    shapes = jnp.concatenate([rig.astype(jnp.complex128), T @ Z], axis=1)
+    return ok, f, shapes
 
 
 @partial(jax.jit, static_argnames=("gyroscopic",))
 def _frequencies(scene: Scene, speed, gyroscopic: bool):
     qi, inst, info = statics.equilibrium(scene, speed=speed)
     M, G, K = linearise(qi, scene, inst, speed)
-    stable, f, shapes = _modes_core(M, G, K, n_rigid_modes(scene), gyroscopic)
+    stable, f, shapes = _modes_core(M, G, K, n_rigid_modes(scene), gyroscopic, rigid_mode(scene, inst))
     J = jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(qi)
     return dict(stable=stable, freqs=f, shapes=shapes, qi=qi, inst=inst, converged=info[0] > 0.5, M=M, G=G, K=K, J=J)
 
@@ -101,7 +164,7 @@ def frequencies(scene: Scene, speed=None):
     qi, inst, _ = statics.equilibrium(scene, speed=speed)
     M, G, K = linearise(qi, scene, inst, speed)
     gyro = scene.model.has("transport")
-    stable, f, _ = _modes_core(M, G, K, n_rigid_modes(scene), gyro)
+    stable, f = _frequencies_core(M, G, K, n_rigid_modes(scene), gyro, rigid_mode(scene, inst))
     return jnp.where(stable, f, jnp.nan)
 
 

@@ -70,6 +70,30 @@ def _skew_modes(M, G, K):
     return ok, omega, Zs[:n, :]
 
 
+def skew_frequencies(M, G, K):
+    """Circular frequencies only (rad/s, ascending) of M x'' + G x' + K x = 0, K and M > 0.
+
+    The real skew matrix S of :func:`_skew_modes` has eigenvalues +-i omega, so
+    S^T S = -S^2 is symmetric with eigenvalues omega^2, each twice: a real
+    ``eigvalsh`` (no eigenvectors, no complex arithmetic) instead of the complex
+    Hermitian ``eigh``, about 3x cheaper.  Returns (ok, omega); ok is False when a
+    Cholesky factor fails (K not positive definite: unstable or rigid modes).
+    """
+    n = M.shape[0]
+    LK = jnp.linalg.cholesky(K)
+    LM = jnp.linalg.cholesky(M)
+    Z = jnp.zeros((n, n))
+    Lb = jnp.block([[LK, Z], [Z, LM]])
+    A = jnp.block([[Z, K], [-K, -G]])
+    X = jax.scipy.linalg.solve_triangular(Lb, A, lower=True)
+    S = jax.scipy.linalg.solve_triangular(Lb, X.T, lower=True).T
+    S = 0.5 * (S - S.T)
+    w2 = jnp.linalg.eigvalsh(S.T @ S)
+    omega = jnp.sqrt(jnp.clip(w2[0::2], 0.0, None))
+    ok = jnp.all(jnp.isfinite(LK)) & jnp.all(jnp.isfinite(LM)) & jnp.all(w2 > 0)
+    return ok, omega
+
+
 def gyroscopic_modes(M, G, K):
     """Modes of M x'' + G x' + K x = 0 (G skew): ``(stable, freqs_hz, shapes, unstable)``.
 
