@@ -295,3 +295,10 @@ def test_tensioner_belt_too_long_or_short():
     with pytest.raises(statics.StaticsError, match="belt.length: belt too short to fit") as e:
         statics.analyse_statics(loads_scene(text.replace(old, "length = 1.70")))
     assert "\n" not in str(e.value)
+
+
+def test_unavailable_fidelity_is_an_error_not_a_silent_ancf_run():
+    sc = loads_scene(TWO.replace('fidelity = "ancf"', 'fidelity = "rotational"'))
+    with pytest.raises(statics.StaticsError, match="model.fidelity") as e:
+        statics.analyse_statics(sc)
+    assert "\n" not in str(e.value)
