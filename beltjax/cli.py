@@ -300,7 +300,8 @@ def campbell_summary(c, n_rows: int = 12) -> str:
     n_unstable = int(np.sum(~np.asarray(c.stable, bool)))
     if n_unstable:
         bad = np.asarray(c.rpm)[~np.asarray(c.stable, bool)]
-        lines.append(f"UNSTABLE at {n_unstable} speeds (from {bad.min():g} rpm): no frequencies there")
+        lines.append(f"no frequencies at {n_unstable} of {len(c.rpm)} speeds (from {bad.min():g} rpm): the drive is "
+                     "unstable there or its steady-motion statics did not converge")
     k = min(n_rows, F.shape[1])
     lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  label"]
     fmt = lambda x: f"{x:>14.2f}" if np.isfinite(x) else f"{'-':>14}"  # noqa: E731

@@ -96,6 +96,17 @@ def is_free(scene: Scene) -> list[bool]:
     return [True if name == TENSIONER else not scene.pulley(name).driven for name in scene.route.order]
 
 
+def flexible(scene: Scene) -> bool:
+    """True for the hybrid ANCF fidelity; False for the rotational (Newton-Euler) one, whose
+    spans are massless axial springs between their end nodes."""
+    return scene.model.fidelity == "ancf"
+
+
+def span_elements(scene: Scene) -> int:
+    """Elements per span in the full coordinates: the mesh (ancf) or 1 (rotational: a bar)."""
+    return scene.model.elements_per_span if flexible(scene) else 1
+
+
 def n_rigid(scene: Scene) -> int:
     """Number of independent rigid-body coordinates (free pulley angles, arm angle)."""
     return sum(is_free(scene)) + (1 if scene.tensioner is not None else 0)
@@ -103,13 +114,14 @@ def n_rigid(scene: Scene) -> int:
 
 def n_independent(scene: Scene) -> int:
     """Number of independent coordinates of the drive."""
-    return n_rigid(scene) + 4 * scene.model.elements_per_span * len(scene.route.order)
+    per_span = 4 * scene.model.elements_per_span if flexible(scene) else 0
+    return n_rigid(scene) + per_span * len(scene.route.order)
 
 
 def n_full(scene: Scene) -> int:
     """Number of full coordinates (spans, then 3 per body)."""
     n = len(scene.route.order)
-    return 4 * (scene.model.elements_per_span + 1) * n + 3 * (n + (1 if scene.tensioner is not None else 0))
+    return 4 * (span_elements(scene) + 1) * n + 3 * (n + (1 if scene.tensioner is not None else 0))
 
 
 def body_names(scene: Scene) -> list[str]:
@@ -161,7 +173,7 @@ def section(scene: Scene) -> Section:
 
 def element_length(scene: Scene, inst: Installation):
     """Unstretched element length of each span (m), shape (n,)."""
-    return inst.span_length / (inst.stretch * scene.model.elements_per_span)
+    return inst.span_length / (inst.stretch * span_elements(scene))
 
 
 # --------------------------------------------------------------------------- kinematic map
@@ -170,6 +182,8 @@ def element_length(scene: Scene, inst: Installation):
 def _split(qi, scene: Scene):
     nr = n_rigid(scene)
     n = len(scene.route.order)
+    if not flexible(scene):
+        return qi[:nr], None
     N = scene.model.elements_per_span
     return qi[:nr], qi[nr:].reshape(n, 4 * N)
 
@@ -198,7 +212,7 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0):
     """
     order = scene.route.order
     n = len(order)
-    N = scene.model.elements_per_span
+    N = span_elements(scene)
     _, spans = _split(qi, scene)
     phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
     centers, radii = scene.layout(theta) if scene.tensioner is not None else (inst.centers, inst.radii)
@@ -210,6 +224,11 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0):
     end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t
     parts = []
     for s in range(n):
+        if spans is None:  # rotational: a bar between the end nodes; slopes are not used
+            slope = inst.stretch * t[s]
+            nodes = jnp.concatenate([start[s], slope, end[s], slope])
+            parts.append(nodes)
+            continue
         body = spans[s]
         nodes = jnp.concatenate([start[s], body[:2], body[2:-2], end[s], body[-2:]])
         parts.append(nodes)
@@ -225,12 +244,14 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0):
 def split_full(q, scene: Scene):
     """Full vector -> (spans (n, 4 (N+1)), bodies (nb, 3))."""
     n = len(scene.route.order)
-    ns = 4 * (scene.model.elements_per_span + 1)
+    ns = 4 * (span_elements(scene) + 1)
     return q[: n * ns].reshape(n, ns), q[n * ns :].reshape(-1, 3)
 
 
 def installed_coordinates(scene: Scene, inst: Installation):
     """Independent coordinates of the installed drive: straight spans at the installation stretch."""
+    if not flexible(scene):
+        return jnp.zeros(n_rigid(scene))
     n = len(scene.route.order)
     N = scene.model.elements_per_span
     x = jnp.linspace(0.0, 1.0, N + 1)
@@ -244,8 +265,13 @@ def installed_coordinates(scene: Scene, inst: Installation):
 # --------------------------------------------------------------------------- full mass and forces
 
 
-def body_masses(scene: Scene):
-    """Diagonal of the bodies' mass matrix: (m, m, J) per body (kg, kg, kg m^2)."""
+def body_masses(scene: Scene, inst: Installation | None = None):
+    """Diagonal of the bodies' mass matrix: (m, m, J) per body (kg, kg, kg m^2).
+
+    With ``inst``, each pulley also carries the belt wrapped round it (no slip):
+    mass rhoA R wrap / lam and inertia that times R^2 (the arc's centre of mass is
+    taken at the pulley centre).
+    """
     vals = []
     for name in scene.route.order:
         if name == TENSIONER:
@@ -254,6 +280,9 @@ def body_masses(scene: Scene):
         else:
             p = scene.pulley(name)
             vals.append(jnp.stack([p.mass, p.mass, p.inertia]))
+    if inst is not None:
+        m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
+        vals = [v + jnp.stack([m, m, m * R**2]) for v, m, R in zip(vals, m_arc, inst.radii)]
     if scene.tensioner is not None:
         t = scene.tensioner
         vals.append(jnp.stack([t.arm_mass, t.arm_mass, t.arm_inertia]))
@@ -263,11 +292,14 @@ def body_masses(scene: Scene):
 def full_mass_matrix(scene: Scene, inst: Installation):
     """Block-diagonal mass matrix of the full coordinates (kg, kg m^2)."""
     n = len(scene.route.order)
-    N = scene.model.elements_per_span
+    N = span_elements(scene)
     idx = span.element_index(N)
     Le = element_length(scene, inst)
-    blocks = [span.span_mass_matrix(scene.belt.rhoA, Le[s], idx) for s in range(n)]
-    blocks.append(jnp.diag(body_masses(scene)))
+    if flexible(scene):
+        blocks = [span.span_mass_matrix(scene.belt.rhoA, Le[s], idx) for s in range(n)]
+    else:  # massless springs (the thesis' rotational model)
+        blocks = [jnp.zeros((4 * (N + 1), 4 * (N + 1))) for _ in range(n)]
+    blocks.append(jnp.diag(body_masses(scene, inst)))
     return jax.scipy.linalg.block_diag(*blocks)
 
 
@@ -285,6 +317,8 @@ def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot
     unstretched belt), c_dot its rate (m/s^2).  ``transport`` adds the
     gyroscopic, centrifugal and rhoA dc/dt terms, ``gravity`` the weight.
     """
+    if not flexible(scene):
+        return _bar_forces(e, s, scene, inst, c)
     N = scene.model.elements_per_span
     idx = span.element_index(N)
     sec = section(scene)
@@ -296,14 +330,34 @@ def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot
     return f
 
 
-def body_forces(bodies, scene: Scene):
+def _bar_energy(e, L0, EA, rhoA, c):
+    """Axial energy of a straight span as one bar, minus its transport (centrifugal) term (J).
+
+    Green-Lagrange, as the ANCF element: 1/2 EA L0 ((l/L0)^2 - 1)^2 / 4, so the axial force
+    is EA (lam^2 - 1)/2 * lam with lam = l / L0; the moving belt's kinetic energy
+    1/2 rhoA c^2 l^2 / L0 acts as a negative potential (hub force reduced by rhoA v^2).
+    """
+    d = e[4:6] - e[0:2]
+    l2 = d @ d
+    eps = 0.5 * (l2 / L0**2 - 1.0)
+    return 0.5 * EA * L0 * eps**2 - 0.5 * rhoA * c**2 * l2 / L0
+
+
+def _bar_forces(e, s: int, scene: Scene, inst: Installation, c=0.0):
+    """Forces of a span of the rotational model on its end nodes (N), shape (8,)."""
+    L0 = element_length(scene, inst)[s]
+    cc = c if scene.model.has("transport") else 0.0
+    return -jax.grad(_bar_energy)(e, L0, scene.belt.EA, scene.belt.rhoA, cc)
+
+
+def body_forces(bodies, scene: Scene, inst: Installation | None = None):
     """Applied forces on the bodies (nb, 3): spring moment on the arm, weights (N, N m)."""
     f = jnp.zeros_like(bodies)
     if scene.tensioner is not None:
         t = scene.tensioner
         f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
     if scene.model.has("gravity"):
-        f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene).reshape(-1, 3)[:, 0])
+        f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
     return f
 
 
@@ -318,7 +372,7 @@ def full_forces(q, q_dot, scene: Scene, inst: Installation, c=0.0, c_dot=0.0):
     E, B = split_full(q, scene)
     Ed, _ = split_full(q_dot, scene)
     fs = [span_forces(E[s], Ed[s], s, scene, inst, c, c_dot) for s in range(E.shape[0])]
-    return jnp.concatenate(fs + [body_forces(B, scene).reshape(-1)])
+    return jnp.concatenate(fs + [body_forces(B, scene, inst).reshape(-1)])
 
 
 # --------------------------------------------------------------------------- reduced equations
@@ -377,8 +431,11 @@ def span_tension_profile(e, EA, Le, N):
 def span_tensions(q, scene: Scene, inst: Installation):
     """Mean axial force of each span (N), route order."""
     E, _ = split_full(q, scene)
-    N = scene.model.elements_per_span
     Le = element_length(scene, inst)
+    if not flexible(scene):
+        lam = jnp.linalg.norm(E[:, 4:6] - E[:, 0:2], axis=1) / Le
+        return scene.belt.EA * 0.5 * (lam**2 - 1.0) * lam
+    N = scene.model.elements_per_span
     return jnp.stack([jnp.mean(span_tension_profile(E[s], scene.belt.EA, Le[s], N)) for s in range(E.shape[0])])
 
 

@@ -77,6 +77,8 @@ def rigid_mode(scene: Scene, inst):
     rigid = [1.0 / (senses[i] * inst.radii[i]) for i, f in enumerate(free) if f]
     if scene.tensioner is not None:
         rigid.append(jnp.zeros(()))
+    if not drive.flexible(scene):
+        return jnp.stack(rigid)
     N = scene.model.elements_per_span
     n = len(scene.route.order)
     node = jnp.concatenate([inst.span_tangent, jnp.zeros((n, 2))], axis=1)  # (n, 4): position, slope
@@ -218,7 +220,7 @@ def energy_shares(shapes, qi, scene: Scene, inst, J=None):
     J = np.asarray(J)
     V = J @ np.asarray(shapes)  # full-coordinate shapes (complex)
     n = len(scene.route.order)
-    N = scene.model.elements_per_span
+    N = drive.span_elements(scene)
     ns = 4 * (N + 1)
     Le = np.asarray(drive.element_length(scene, inst))
     t = np.asarray(inst.span_tangent)
@@ -226,7 +228,7 @@ def energy_shares(shapes, qi, scene: Scene, inst, J=None):
     shares, trans, longi = {}, [], []
     names = drive.span_names(scene)
     for s in range(n):
-        Ms = _scalar_mass(float(scene.belt.rhoA), float(Le[s]), N)
+        Ms = _scalar_mass(float(scene.belt.rhoA) if drive.flexible(scene) else 0.0, float(Le[s]), N)
         blk = V[s * ns : (s + 1) * ns].reshape(N + 1, 2, 2, -1)  # node, (pos, slope), (x, y), mode
         ul = np.einsum("nkdm,d->nkm", blk, t[s]).reshape(2 * (N + 1), -1)
         ut = np.einsum("nkdm,d->nkm", blk, nrm[s]).reshape(2 * (N + 1), -1)
@@ -235,7 +237,7 @@ def energy_shares(shapes, qi, scene: Scene, inst, J=None):
         trans.append(_fine_profile(ut, Le[s], N))
         longi.append(_fine_profile(ul, Le[s], N))
     B = V[n * ns :].reshape(-1, 3, V.shape[1])
-    mass = np.asarray(drive.body_masses(scene)).reshape(-1, 3)
+    mass = np.asarray(drive.body_masses(scene, inst)).reshape(-1, 3)
     for b, name in enumerate(drive.body_names(scene)):
         shares[name] = np.real(np.einsum("km,k,km->m", B[b].conj(), mass[b], B[b]))
     total = sum(shares.values())

@@ -121,7 +121,7 @@ def _span_curves(scene, q, inst):
     from beltjax import drive
 
     E, _ = drive.split_full(np.asarray(q), scene)
-    N = scene.model.elements_per_span
+    N = drive.span_elements(scene)
     Le = np.asarray(drive.element_length(scene, inst))
     return [span_curve(E[s], N, float(Le[s])) for s in range(E.shape[0])]
 
@@ -304,7 +304,7 @@ def plot_campbell(result, path, title: str = ""):
     """Save a Campbell diagram (PNG): mode frequencies against drive-pulley speed, order lines, crossings.
 
     result: a CampbellResult.  Rigid-body (0 Hz) modes are not drawn; speeds
-    where the drive is unstable are shaded.
+    without frequencies (``stable`` false: unstable, or no equilibrium) are shaded.
     """
     from beltjax.drive_modal import RIGID_HZ
 
@@ -341,7 +341,7 @@ def plot_campbell(result, path, title: str = ""):
         step = (rpm[1] - rpm[0]) / 2 if len(rpm) > 1 else 0.5
         for i in np.flatnonzero(unstable):
             ax.axvspan(rpm[i] - step, rpm[i] + step, color="crimson", alpha=0.12, lw=0)
-        ax.plot([], [], color="crimson", alpha=0.3, lw=8, label="unstable")
+        ax.plot([], [], color="crimson", alpha=0.3, lw=8, label="no frequencies (unstable or no equilibrium)")
     cx = [c for c in result.crossings if c["mode"] - 1 in colors]
     if cx:
         ax.scatter([c["rpm"] for c in cx], [c["frequency_hz"] for c in cx], s=36, zorder=5,

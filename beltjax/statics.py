@@ -348,10 +348,6 @@ def analyse_statics(scene: Scene, speed: float | None = None) -> StaticResult:
     Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
     Newton iteration fails even with speed stepping, or a span would go slack.
     """
-    if scene.model.fidelity != "ancf":
-        raise StaticsError(
-            f"fidelity {scene.model.fidelity!r} is not available yet for drives; use \"ancf\"", "model.fidelity"
-        )
     scene = drive.canonical(scene)
     inst = _install_jit(scene)
     check_installation(scene, inst)

@@ -1,93 +1,186 @@
-"""The `beltjax statics|modal|campbell` commands: outputs, figures, one-line errors.
+"""The drive commands `beltjax statics`, `modal` and `campbell`: outputs, and one-line errors.
 
-Run in-process through ``beltjax.cli.main`` so that the compiled functions are
-shared with the other drive tests.
+The full runs are subprocesses of the real command (each compiles; they share one
+persistent compile cache through BELTJAX_CACHE); the bad-input cases stop before
+any compilation and run in-process.
 """
 
 import json
+import math
+import os
 import pathlib
+import subprocess
+import sys
+import tomllib
 
 import numpy as np
 import pytest
 
 from beltjax.cli import main
 
-SCENES = pathlib.Path(__file__).resolve().parents[1] / "scenes"
-T200 = str(SCENES / "two_pulley_T200.toml")
+REPO = pathlib.Path(__file__).resolve().parents[1]
+T200 = REPO / "scenes" / "two_pulley_T200.toml"
+TIMEOUT = 900  # s per command: a compile on a busy 2-core machine, never a hang forever
 
 
-def _one_line_error(capsys, argv, needle):
-    code = main(argv)
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    """One persistent JAX compile cache for the whole module."""
+    return tmp_path_factory.mktemp("jax_cache")
+
+
+@pytest.fixture(autouse=True)
+def _use_cache(cache, monkeypatch):
+    monkeypatch.setenv("BELTJAX_CACHE", str(cache))
+
+
+def run_cli(*args, cache):
+    env = dict(os.environ, BELTJAX_CACHE=str(cache))
+    env.pop("BELTJAX_DEBUG", None)
+    proc = subprocess.run([sys.executable, "-m", "beltjax.cli", *map(str, args)], capture_output=True, text=True,
+                          timeout=TIMEOUT, env=env, cwd=REPO)
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+# --------------------------------------------------------------------------- full runs
+
+
+def test_statics_command(tmp_path, cache):
+    out = tmp_path / "st"
+    proc = run_cli("statics", T200, "--out", out, cache=cache)
+    data = json.loads((out / "statics.json").read_text())
+    for key in ("span_names", "span_tensions_N", "span_lengths_m", "belt_length_m", "installation_tension_N",
+                "stretch", "hub_forces_N", "hub_force_magnitudes_N", "wrap_angles_deg", "speed_m_s"):
+        assert key in data, key
+    assert data["span_names"] == ["crank-alternator", "alternator-crank"]
+    assert len(data["span_tensions_N"]) == 2
+    assert all(abs(T - 200.0) < 2.0 for T in data["span_tensions_N"]), data["span_tensions_N"]
+    assert 1.7 < data["belt_length_m"] < 1.9 and data["stretch"] > 1.0
+    F = {k: np.array(v) for k, v in data["hub_forces_N"].items()}
+    assert set(F) == {"crank", "alternator"}
+    np.testing.assert_allclose(F["crank"], -F["alternator"], atol=1e-6)  # the belt is in equilibrium
+    assert 0.95 * 400 < np.hypot(*F["crank"]) <= 400.0  # nearly parallel spans: about 2 T
+    assert F["crank"][0] < 0  # the belt pulls the crank towards the alternator (smaller x)
+    assert "tensioner_angle_deg" not in data
+    assert (out / "layout.png").stat().st_size > 10_000
+    assert "crank-alternator" in proc.stdout and "200.00" in proc.stdout and "statics.json" in proc.stdout
+
+
+def test_modal_command(tmp_path, cache):
+    out = tmp_path / "mo"
+    proc = run_cli("modal", T200, "--modes", "10", "--out", out, cache=cache)
+    data = json.loads((out / "modal.json").read_text())
+    f, labels = data["frequencies_hz"], data["labels"]
+    assert data["stable"] is True and len(f) == len(labels) == 10
+    assert all(math.isfinite(x) for x in f) and f == sorted(f)
+    assert labels[0] == "rigid body" and f[0] == 0.0  # both pulleys free: the belt turns as a whole
+    # first transverse modes of the two equal spans: tensioned string n/(2L) sqrt(T/rhoA), within 2 %
+    L = 0.6742
+    f1 = 1 / (2 * L) * math.sqrt(200.0 / 0.12101)
+    assert abs(f[1] - f1) < 0.02 * f1 and abs(f[2] - f[1]) < 1e-3 * f[1]
+    assert all("transverse" in lab for lab in labels[1:3])
+    assert (out / "modes.png").stat().st_size > 10_000
+    assert "1st transverse" in proc.stdout and "modal.json" in proc.stdout
+
+
+def test_campbell_command(tmp_path, cache):
+    out = tmp_path / "ca"
+    proc = run_cli("campbell", T200, "--rpm", "0:2000:500", "--modes", "6", "--out", out, cache=cache)
+    data = json.loads((out / "campbell.json").read_text())
+    assert data["rpm"] == [0.0, 500.0, 1000.0, 1500.0, 2000.0]
+    F = np.array(data["frequencies_hz"], dtype=float)
+    assert F.shape == (5, 6) and len(data["labels"]) == 6 and len(data["stable"]) == 5
+    assert all(data["stable"]) and np.all(np.isfinite(F))
+    assert np.all(np.diff(F, axis=1) >= -1e-9)  # ascending at each speed
+    transport = "transport" in tomllib.loads(T200.read_text())["model"].get("effects", [])
+    assert data["orders"] == [1.0, 2.0, 3.0] and data["transport_effect"] is transport
+    if transport:  # the moving belt softens the transverse modes: frequencies fall with speed
+        assert np.all(F[-1, 1:] < F[0, 1:]) and np.all(F[-1, 1:] > 0.5 * F[0, 1:])
+    else:
+        np.testing.assert_allclose(F, F[:1].repeat(5, axis=0), rtol=1e-8)  # independent of speed
+        assert "transport" in proc.stdout  # the note saying so
+    assert data["crossings"], "the first transverse modes (~30 Hz) cross 2x and 3x below 2000 rpm"
+    for c in data["crossings"]:
+        assert 0 <= c["rpm"] <= 2000 and c["order"] in (1.0, 2.0, 3.0)
+        assert abs(c["frequency_hz"] - c["order"] * c["rpm"] / 60) < 1e-6
+        assert c["label"] == data["labels"][c["mode"] - 1]
+    assert (out / "campbell.png").stat().st_size > 10_000
+    assert "crossings" in proc.stdout and "campbell.json" in proc.stdout
+    assert "campbell: 5/5 speeds" in proc.stderr  # progress goes to stderr
+
+
+# --------------------------------------------------------------------------- bad input (no compilation)
+
+
+def _scene_variant(tmp_path, old, new, name="variant.toml"):
+    text = T200.read_text()
+    assert old in text
+    p = tmp_path / name
+    p.write_text(text.replace(old, new))
+    return p
+
+
+BAD = [
+    (["campbell", str(T200), "--rpm", "0:2000"], "--rpm"),
+    (["campbell", str(T200), "--rpm", "a:b:c"], "--rpm"),
+    (["campbell", str(T200), "--rpm", "0:2000:0"], "--rpm"),
+    (["campbell", str(T200), "--rpm", "0:2000:-50"], "--rpm"),
+    (["campbell", str(T200), "--rpm", "2000:0:50"], "--rpm"),
+    (["campbell", str(T200), "--rpm=-100:2000:50"], "--rpm"),
+    (["campbell", str(T200), "--rpm", "-100:2000:50"], "--rpm"),
+    (["campbell", str(T200), "--rpm", "0:100000:1"], "--rpm"),
+    (["campbell", str(T200), "--rpm", "0:nan:5"], "--rpm"),
+    (["campbell", str(T200)], "--rpm"),
+    (["campbell", str(T200), "--rpm", "0:2000:500", "--orders=-1,2"], "--orders"),
+    (["campbell", str(T200), "--rpm", "0:2000:500", "--orders", "1,x"], "--orders"),
+    (["campbell", str(T200), "--rpm", "0:2000:500", "--orders", "0"], "--orders"),
+    (["campbell", str(T200), "--rpm", "0:2000:500", "--modes", "0"], "--modes"),
+    (["modal", str(T200), "--modes", "0"], "--modes"),
+    (["modal", str(T200), "--modes", "2.5"], "--modes"),
+    (["modal", str(T200), "--rpm=-5"], "--rpm"),
+    (["modal", str(T200), "--rpm", "fast"], "--rpm"),
+    (["statics"], "scene"),
+    (["statics", str(T200), "--speed", "3"], "--speed"),
+]
+
+
+@pytest.mark.parametrize("argv,name", BAD, ids=[" ".join(a[2:]) or " ".join(a) for a, _ in BAD])
+def test_bad_arguments_give_one_line_naming_the_argument(argv, name, capsys, tmp_path):
+    out = tmp_path / "out"
+    code = main(argv + ["--out", str(out)])
     err = capsys.readouterr().err.strip()
-    assert code != 0
+    assert code == 2
     assert len(err.splitlines()) == 1, err
-    assert needle in err, err
-    return err
+    assert name in err and err.startswith("beltjax: error:"), err
+    assert "Traceback" not in err
+    assert not out.exists()
 
 
-def test_statics_command(tmp_path, capsys):
-    assert main(["statics", T200, "--out", str(tmp_path)]) == 0
-    out = capsys.readouterr().out
-    assert "alternator" in out and "statics.json" in out
-    d = json.loads((tmp_path / "statics.json").read_text())
-    np.testing.assert_allclose(d["span_tensions_N"], 200.0, rtol=1e-6)
-    assert len(d["span_tensions_N"]) == 2 and set(d["hub_forces_N"]) == {"crank", "alternator"}
-    assert 1.79 < d["belt_length_m"] < 1.80
-    assert (tmp_path / "layout.png").stat().st_size > 10_000
+@pytest.mark.parametrize("command", ["statics", "modal", "campbell"])
+def test_missing_scene_file(command, capsys, tmp_path):
+    missing = tmp_path / "no_such_scene.toml"
+    extra = ["--rpm", "0:1000:500"] if command == "campbell" else []
+    code = main([command, str(missing), *extra, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert str(missing) in err and "not found" in err
+    assert not (tmp_path / "out").exists()
 
 
-def test_modal_command(tmp_path, capsys):
-    assert main(["modal", T200, "--modes", "12", "--out", str(tmp_path)]) == 0
-    out = capsys.readouterr().out
-    assert "1st rotational" in out
-    d = json.loads((tmp_path / "modal.json").read_text())
-    f = d["frequencies_hz"]
-    assert len(f) == len(d["labels"]) == 12
-    assert f == sorted(f) and f[0] == 0.0 and d["labels"][0] == "rigid body"
-    assert abs(f[1] - 30.2) < 0.3
-    assert (tmp_path / "modes.png").stat().st_size > 10_000
+def test_scene_with_unknown_key(capsys, tmp_path):
+    p = _scene_variant(tmp_path, "rhoA = 0.12101", "rhoA = 0.12101\nstiffnes = 3.0")
+    code = main(["modal", str(p), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "belt.stiffnes" in err and "unknown key" in err and str(p) in err
 
 
-def test_campbell_command(tmp_path, capsys):
-    argv = ["campbell", T200, "--rpm", "0:2000:500", "--modes", "6", "--orders", "1,2", "--out", str(tmp_path)]
-    assert main(argv) == 0
-    cap = capsys.readouterr()
-    assert "crossings" in cap.out and "speeds" in cap.err  # progress on stderr
-    d = json.loads((tmp_path / "campbell.json").read_text())
-    assert d["rpm"] == [0.0, 500.0, 1000.0, 1500.0, 2000.0]
-    assert np.shape(d["frequencies_hz"]) == (5, 6) and len(d["labels"]) == 6
-    assert d["orders"] == [1.0, 2.0] and d["transport_effect"] is True
-    f = np.array(d["frequencies_hz"])
-    assert np.all(np.diff(f[:, 1]) < 0)  # transverse frequencies fall with speed
-    for c in d["crossings"]:
-        assert abs(c["frequency_hz"] - c["order"] * c["rpm"] / 60) < 1e-9
-    assert (tmp_path / "campbell.png").stat().st_size > 10_000
-
-
-@pytest.mark.parametrize(
-    "argv,needle",
-    [
-        (["campbell", T200, "--rpm", "0:100"], "--rpm"),
-        (["campbell", T200, "--rpm", "100:0:10"], "--rpm"),
-        (["campbell", T200, "--rpm", "0:100:0"], "--rpm"),
-        (["campbell", T200, "--rpm", "a:b:c"], "--rpm"),
-        (["campbell", T200, "--rpm", "0:100000:1"], "--rpm"),
-        (["campbell", T200, "--rpm", "0:100:10", "--orders", "-1,2"], "--orders"),
-        (["campbell", T200, "--rpm", "0:100:10", "--modes", "0"], "--modes"),
-        (["modal", T200, "--modes", "x"], "--modes"),
-        (["statics", "no/such/scene.toml"], "no/such/scene.toml"),
-        (["campbell", T200], "--rpm"),
-    ],
-)
-def test_bad_arguments(argv, needle, capsys, tmp_path):
-    _one_line_error(capsys, argv + ["--out", str(tmp_path)], needle)
-
-
-def test_bad_scene_and_bad_belt(tmp_path, capsys):
-    text = pathlib.Path(T200).read_text()
-    bad = tmp_path / "bad.toml"
-    bad.write_text(text.replace("[belt]", "[belt]\ncolour = 'black'"))
-    _one_line_error(capsys, ["statics", str(bad), "--out", str(tmp_path)], "belt.colour")
-    short = tmp_path / "short.toml"
-    short.write_text(text.replace("static_tension = 200.0", "length = 1.60"))
-    _one_line_error(capsys, ["modal", str(short), "--out", str(tmp_path)], "too short")
+def test_belt_too_short(capsys, tmp_path):
+    p = _scene_variant(tmp_path, "static_tension = 200.0", "length = 1.60")
+    code = main(["statics", str(p), "--out", str(tmp_path / "out")])
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "too short" in err and "belt.length" in err, err
+    assert not (tmp_path / "out" / "statics.json").exists()
