@@ -7,6 +7,10 @@ meaning in float32: axial strains of 1e-3 are differences of numbers near 1).
 import os as _os
 
 _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# vmapped eigen-solves hung intermittently in XLA's multi-threaded Eigen pool on CPU (a known
+# JAX CPU deadlock); single-threaded Eigen costs nothing measurable at these sizes.
+if "xla_cpu_multi_thread_eigen" not in _os.environ.get("XLA_FLAGS", ""):
+    _os.environ["XLA_FLAGS"] = (_os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false").strip()
 
 import jax as _jax
 

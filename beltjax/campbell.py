@@ -30,10 +30,12 @@ def _batch(scene: Scene, speeds, n_modes: int):
     nr = drive_modal.n_rigid_modes(scene)
 
     def one(v):
-        qi, inst, info = statics.equilibrium(scene, speed=v)
+        # speed stepping from rest: robust up to high speeds (the steady-state statics moves
+        # the tensioner arm), cheap next to the eigen-solve
+        qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
         M, G, K = drive_modal.linearise(qi, scene, inst, v)
         stable, f = drive_modal._frequencies_core(M, G, K, nr, gyro, drive_modal.rigid_mode(scene, inst))
-        return f[:n_modes], stable & (info[0] > 0.5)
+        return f[:n_modes], stable, info[0] > 0.5
 
     return jax.vmap(one)(speeds)
 
@@ -42,28 +44,30 @@ def campbell_frequencies(scene: Scene, rpm, n_modes: int = 20, chunk: int = 32, 
     """Frequencies (Hz) of the lowest ``n_modes`` modes at each drive-pulley speed.
 
     rpm: (n,) speeds of the drive pulley (rpm).  Returns (freqs (n, n_modes) with
-    NaN where the drive is unstable or the statics failed, ok (n,) bool).
+    NaN where the drive is unstable or the statics failed, stable (n,) bool, converged (n,) bool).
     progress: optional callable(done, total) called after each chunk.
     """
     scene = drive.canonical(scene)
     rpm = np.asarray(rpm, dtype=float)
     n_modes = min(n_modes, drive.n_independent(scene))
     speeds = np.asarray(drive.belt_speed(scene, jnp.asarray(rpm)))
-    out_f, out_ok = [], []
+    out_f, out_ok, out_conv = [], [], []
     for start in range(0, len(speeds), chunk):
         part = speeds[start : start + chunk]
         size = chunk if len(speeds) > 8 else 8  # few batch shapes: few compilations
         pad = size - len(part)
         padded = np.concatenate([part, np.full(pad, part[-1])]) if pad else part
-        f, ok = _batch(scene, jnp.asarray(padded), n_modes)
+        f, ok, conv = _batch(scene, jnp.asarray(padded), n_modes)
         out_f.append(np.asarray(f)[: len(part)])
         out_ok.append(np.asarray(ok)[: len(part)])
+        out_conv.append(np.asarray(conv)[: len(part)])
         if progress is not None:
             progress(min(start + chunk, len(speeds)), len(speeds))
     f = np.concatenate(out_f)
     ok = np.concatenate(out_ok)
-    f[~ok] = np.nan
-    return f, ok
+    conv = np.concatenate(out_conv)
+    f[~(ok & conv)] = np.nan
+    return f, ok, conv
 
 
 def crossings(rpm, freqs, orders=DEFAULT_ORDERS, labels=None):
@@ -110,6 +114,7 @@ class CampbellResult:
     orders: tuple
     crossings: list
     stable: np.ndarray
+    converged: np.ndarray
     drive_pulley: str
     transport: bool
 
@@ -123,6 +128,7 @@ class CampbellResult:
             "labels": self.labels,
             "orders": [float(k) for k in self.orders],
             "stable": [bool(s) for s in self.stable],
+            "statics_converged": [bool(s) for s in self.converged],
             "crossings": self.crossings,
         }
 
@@ -136,7 +142,7 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
     rpm = np.sort(np.asarray(rpm, dtype=float))
     v0 = float(drive.belt_speed(scene, rpm[0]))
     base = drive_modal.analyse_modes(scene, v0)
-    f, ok = campbell_frequencies(scene, rpm, n_modes, progress=progress)
+    f, ok, conv = campbell_frequencies(scene, rpm, n_modes, progress=progress)
     labels = list(base.labels[: f.shape[1]]) if base.stable else [f"mode {i + 1}" for i in range(f.shape[1])]
     return CampbellResult(
         rpm=rpm,
@@ -145,6 +151,7 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
         orders=tuple(float(k) for k in orders),
         crossings=crossings(rpm, f, orders, labels),
         stable=ok,
+        converged=conv,
         drive_pulley=scene.route.order[drive.drive_pulley(scene)],
         transport=scene.model.has("transport"),
     )

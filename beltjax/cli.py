@@ -278,7 +278,7 @@ def cmd_modal(args) -> int:
     plot_drive_modes(scene, m, out / "modes.png", n_modes=6, pool=args.modes)
     rpm = "" if args.rpm is None else f" ({args.rpm:g} rpm of the drive pulley)"
     print(f"modes of {_title(scene, args.scene)}")
-    print(f"belt speed {m.speed_m_s:g} m/s{rpm}; " + ("stable" if m.stable else "UNSTABLE"))
+    print(f"belt speed {m.speed_m_s:g} m/s{rpm}" + ("; stable" if m.stable else ""))
     if m.speed_m_s != 0 and not scene.model.has("transport"):
         print("note: the scene does not list the \"transport\" effect, so the belt speed does not change the modes")
     print(modal_table(m, args.modes))
@@ -297,13 +297,19 @@ def campbell_summary(c, n_rows: int = 12) -> str:
     if not c.transport:
         lines.append("note: the scene does not list the \"transport\" effect, so the frequencies do not depend on "
                      "speed (add \"transport\" to [model] effects)")
-    n_unstable = int(np.sum(~np.asarray(c.stable, bool)))
-    if n_unstable:
-        bad = np.asarray(c.rpm)[~np.asarray(c.stable, bool)]
-        lines.append(f"no frequencies at {n_unstable} of {len(c.rpm)} speeds (from {bad.min():g} rpm): the drive is "
-                     "unstable there or its steady-motion statics did not converge")
+    unstable = ~np.asarray(c.stable, bool)
+    failed = ~np.asarray(c.converged, bool)
+    if np.any(failed):
+        bad = np.asarray(c.rpm)[failed]
+        lines.append(f"no frequencies at {int(failed.sum())} of {len(c.rpm)} speeds (from {bad.min():g} rpm): "
+                     "no steady-motion equilibrium found there")
+    if np.any(unstable & ~failed):
+        bad = np.asarray(c.rpm)[unstable & ~failed]
+        lines.append(f"UNSTABLE at {int((unstable & ~failed).sum())} of {len(c.rpm)} speeds (from {bad.min():g} rpm): "
+                     "past a critical speed, no natural frequencies")
     k = min(n_rows, F.shape[1])
-    lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  label"]
+    lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  "
+              f"label (at {r0:g} rpm; modes are sorted by frequency, not tracked)"]
     fmt = lambda x: f"{x:>14.2f}" if np.isfinite(x) else f"{'-':>14}"  # noqa: E731
     for i in range(k):
         lines.append(f"{i + 1:>4}  {fmt(F[0, i])}  {fmt(F[-1, i])}  {c.labels[i]}")

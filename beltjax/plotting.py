@@ -250,8 +250,8 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
     nrow = int(np.ceil(n / ncol))
     aspect = float(np.clip((hi - lo + 2 * pad)[1] / (hi - lo + 2 * pad)[0], 0.25, 1.5))
     panel = 4.6
-    fig, axes = plt.subplots(nrow, ncol, figsize=(panel * ncol + 0.4, (panel * aspect + 1.1) * nrow + 0.7),
-                             squeeze=False)
+    width = max(panel * ncol + 0.4, 9.5)  # room for the title with one panel
+    fig, axes = plt.subplots(nrow, ncol, figsize=(width, (panel * aspect + 1.1) * nrow + 0.7), squeeze=False)
     axes = axes.ravel()
     static_curves = _span_curves(scene, st.q, inst)
     order = scene.route.order
@@ -291,10 +291,10 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
     for ax in axes[len(picks) if picks else 1:]:
         ax.set_visible(False)
     axes[0].legend(fontsize=7, loc="upper right")
-    title = _wrapped(scene.description or scene.source or "belt drive", 110)
+    title = _wrapped(scene.description or scene.source or "belt drive", int(11 * width))
     fig.suptitle((title + "\n" if title else "")
-                 + f"mode shapes at belt speed {modal_result.speed_m_s:g} m/s (displacements exaggerated; "
-                 "spokes show pulley rotation)", fontsize=10)
+                 + _wrapped(f"mode shapes at belt speed {modal_result.speed_m_s:g} m/s (displacements exaggerated; "
+                            "spokes show pulley rotation)", int(11 * width)), fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -336,7 +336,7 @@ def plot_campbell(result, path, title: str = ""):
         ax.annotate(f"{k:g}x", (x_end, k * x_end / 60.0), xytext=(-4, -10 if x_end < x1 else 3),
                     textcoords="offset points", ha="right", fontsize=9, color="0.2")
     ax.plot([], [], ls="--", color="0.35", lw=1.0, label="order lines (k x rpm/60)")
-    unstable = ~np.asarray(result.stable, bool)
+    unstable = ~(np.asarray(result.stable, bool) & np.asarray(result.converged, bool))
     if np.any(unstable):
         step = (rpm[1] - rpm[0]) / 2 if len(rpm) > 1 else 0.5
         for i in np.flatnonzero(unstable):

@@ -196,7 +196,13 @@ def check_installation(scene: Scene, inst: Installation) -> None:
 
 
 def _newton(f, q0, max_iter: int = 40, xtol: float = 1e-11):
-    """Newton with a backtracking line search on |f|; returns (q, (converged, iterations, |f|)) (floats)."""
+    """Newton with a backtracking line search; returns (q, (converged, iterations, |f|)) (floats).
+
+    The line search uses the natural monotonicity test (Deuflhard): a step length a is
+    accepted when the simplified Newton correction at q + a d, computed with the same
+    factorised Jacobian, shrinks, |K^-1 f(q + a d)| <= (1 - a/4) |d|.  Unlike a test on
+    |f|, it does not depend on the units of the residual (forces and moments mixed).
+    """
     alphas = 0.5 ** jnp.arange(8.0)
 
     def cond(state):
@@ -206,16 +212,21 @@ def _newton(f, q0, max_iter: int = 40, xtol: float = 1e-11):
     def body(state):
         q, it, _, _ = state
         R = f(q)
-        K = jax.jacfwd(f)(q)
-        d = -jnp.linalg.solve(K, R)
-        n0 = jnp.linalg.norm(R)
-        norms = jax.vmap(lambda a: jnp.linalg.norm(f(q + a * d)))(alphas)
-        good = jnp.isfinite(norms) & (norms < (1.0 - 1e-4 * alphas) * n0)
-        k = jnp.where(jnp.any(good), jnp.argmax(good), jnp.argmin(jnp.where(jnp.isfinite(norms), norms, jnp.inf)))
+        lu = jax.scipy.linalg.lu_factor(jax.jacfwd(f)(q))
+        d = -jax.scipy.linalg.lu_solve(lu, R)
+        nd = jnp.linalg.norm(d)
+
+        def trial(a):
+            Rt = f(q + a * d)
+            return jnp.linalg.norm(jax.scipy.linalg.lu_solve(lu, Rt)), jnp.linalg.norm(Rt)
+
+        nbar, nres = jax.vmap(trial)(alphas)
+        good = jnp.isfinite(nbar) & (nbar <= (1.0 - alphas / 4) * nd)
+        k = jnp.where(jnp.any(good), jnp.argmax(good), jnp.argmin(jnp.where(jnp.isfinite(nbar), nbar, jnp.inf)))
         step = alphas[k] * d
         q = q + step
         small = jnp.max(jnp.abs(step)) < xtol * (1.0 + jnp.max(jnp.abs(q)))
-        return q, it + 1, small | ~jnp.all(jnp.isfinite(step)), norms[k]
+        return q, it + 1, small | ~jnp.all(jnp.isfinite(step)), nres[k]
 
     q, it, done, rn = jax.lax.while_loop(cond, body, (q0, 0, False, jnp.inf))
     conv = done & jnp.all(jnp.isfinite(q))

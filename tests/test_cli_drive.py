@@ -96,7 +96,7 @@ def test_campbell_command(tmp_path, cache):
     transport = "transport" in tomllib.loads(T200.read_text())["model"].get("effects", [])
     assert data["orders"] == [1.0, 2.0, 3.0] and data["transport_effect"] is transport
     if transport:  # the moving belt softens the transverse modes: frequencies fall with speed
-        assert np.all(F[-1, 1:] < F[0, 1:]) and np.all(F[-1, 1:] > 0.5 * F[0, 1:])
+        assert F[-1, 1] < 0.99 * F[0, 1] and np.all(F[-1, 1:] > 0.5 * F[0, 1:])
     else:
         np.testing.assert_allclose(F, F[:1].repeat(5, axis=0), rtol=1e-8)  # independent of speed
         assert "transport" in proc.stdout  # the note saying so
