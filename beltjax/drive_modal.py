@@ -178,11 +178,17 @@ def _ordinal(n):
 
 
 def _half_waves(w):
-    """Half-waves of a nodal displacement profile: sign changes (ignoring small values) + 1."""
-    w = np.asarray(w, dtype=float)
-    big = np.abs(w) > 0.1 * np.max(np.abs(w)) if np.max(np.abs(w)) > 0 else np.zeros_like(w, bool)
-    s = np.sign(w[big])
-    return int(np.sum(s[1:] != s[:-1])) + 1 if s.size else 1
+    """Half-waves of a (complex) displacement profile: interior nodes + 1.
+
+    A node is an interior local minimum of |w| below 20 % of its maximum: for real
+    shapes these are the sign changes, and for the complex modes of a moving belt
+    (travelling-wave phase along the span) it still counts the standing-wave nodes.
+    """
+    a = np.abs(np.asarray(w))
+    if a.size < 3 or np.max(a) == 0:
+        return 1
+    inner = (a[1:-1] < a[:-2]) & (a[1:-1] <= a[2:]) & (a[1:-1] < 0.2 * np.max(a))
+    return int(np.sum(inner)) + 1
 
 
 def _scalar_mass(rhoA, Le, N):
@@ -255,11 +261,6 @@ def label_modes(freqs, shapes, qi, scene: Scene, inst, J=None):
     shares, trans, longi = energy_shares(shapes, qi, scene, inst, J)
     names = drive.span_names(scene)
     bodies = drive.body_names(scene)
-    # align the phase of complex modes so real parts carry them
-    def real_profile(p):
-        ph = np.angle(np.sum(p**2)) / 2
-        return np.real(p * np.exp(-1j * ph))
-
     labels, n_rot = [], 0
     for m, f in enumerate(np.asarray(freqs)):
         if f < RIGID_HZ:
@@ -279,7 +280,7 @@ def label_modes(freqs, shapes, qi, scene: Scene, inst, J=None):
         prof = trans if kind == 0 else longi
         order = np.argsort(-part)
         who = [names[i] for i in order if part[i] >= NAME_SHARE * part.sum()]
-        k = _half_waves(real_profile(prof[m, order[0]]))
+        k = _half_waves(prof[m, order[0]])
         word = "transverse" if kind == 0 else "longitudinal"
         labels.append(f"{_ordinal(k)} {word} {' + '.join(who)}")
     return labels, shares
