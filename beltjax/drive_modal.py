@@ -178,16 +178,22 @@ def _ordinal(n):
 
 
 def _half_waves(w):
-    """Half-waves of a (complex) displacement profile: interior nodes + 1.
+    """Half-waves of a displacement profile: interior nodes + 1.
 
-    A node is an interior local minimum of |w| below 20 % of its maximum: for real
-    shapes these are the sign changes, and for the complex modes of a moving belt
-    (travelling-wave phase along the span) it still counts the standing-wave nodes.
+    Real shapes: sign changes (ignoring values under 10 % of the maximum).  Complex
+    modes of a moving belt carry a travelling phase along the span, so the real
+    part's sign changes over-count; there a node is an interior local minimum of
+    |w| under 35 % of its maximum (the standing-wave nodes).
     """
-    a = np.abs(np.asarray(w))
+    w = np.asarray(w)
+    a = np.abs(w)
     if a.size < 3 or np.max(a) == 0:
         return 1
-    inner = (a[1:-1] < a[:-2]) & (a[1:-1] <= a[2:]) & (a[1:-1] < 0.2 * np.max(a))
+    if np.max(np.abs(np.imag(w))) <= 1e-9 * np.max(a):
+        r = np.real(w)
+        s = np.sign(r[np.abs(r) > 0.1 * np.max(a)])
+        return int(np.sum(s[1:] != s[:-1])) + 1
+    inner = (a[1:-1] < a[:-2]) & (a[1:-1] <= a[2:]) & (a[1:-1] < 0.35 * np.max(a))
     return int(np.sum(inner)) + 1
 
 
@@ -205,7 +211,7 @@ def _scalar_mass(rhoA, Le, N):
     return M
 
 
-def _fine_profile(u, Le, N, per_element: int = 8):
+def _fine_profile(u, Le, N, per_element: int = 16):
     """Displacement profile along a span from nodal (value, slope) pairs, by the cubic shape functions."""
     x = (np.arange(per_element) + 0.5) / per_element
     S = np.stack([1 - 3 * x**2 + 2 * x**3, Le * (x - 2 * x**2 + x**3), 3 * x**2 - 2 * x**3, Le * (x**3 - x**2)], 1)
