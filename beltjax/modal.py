@@ -51,33 +51,12 @@ def gyroscopic_eigen(M, G, K):
     return lam, Z[:n, :]
 
 
-@jax.jit
-def _skew_modes(M, G, K):
-    n = M.shape[0]
-    LK = jnp.linalg.cholesky(K)
-    LM = jnp.linalg.cholesky(M)
-    Z = jnp.zeros((n, n))
-    Lb = jnp.block([[LK, Z], [Z, LM]])
-    A = jnp.block([[Z, K], [-K, -G]])
-    X = jax.scipy.linalg.solve_triangular(Lb, A, lower=True)
-    S = jax.scipy.linalg.solve_triangular(Lb, X.T, lower=True).T
-    S = 0.5 * (S - S.T)
-    w, U = jnp.linalg.eigh(1j * S)  # S v = i omega v  <=>  (i S) v = -omega v
-    omega = -w[:n][::-1]  # the n negative w, as ascending omega > 0
-    U = U[:, :n][:, ::-1]
-    Zs = jax.scipy.linalg.solve_triangular(Lb.T.astype(U.dtype), U, lower=False)
-    ok = jnp.all(jnp.isfinite(LK)) & jnp.all(omega > 0)
-    return ok, omega, Zs[:n, :]
+def _skew_matrix(M, G, K):
+    """The real skew matrix S = L^-1 [[0, K], [-K, -G]] L^-T with diag(K, M) = L L^T.
 
-
-def skew_frequencies(M, G, K):
-    """Circular frequencies only (rad/s, ascending) of M x'' + G x' + K x = 0, K and M > 0.
-
-    The real skew matrix S of :func:`_skew_modes` has eigenvalues +-i omega, so
-    S^T S = -S^2 is symmetric with eigenvalues omega^2, each twice: a real
-    ``eigvalsh`` (no eigenvectors, no complex arithmetic) instead of the complex
-    Hermitian ``eigh``, about 3x cheaper.  Returns (ok, omega); ok is False when a
-    Cholesky factor fails (K not positive definite: unstable or rigid modes).
+    Its eigenvalues are +-i omega, the circular frequencies of M x'' + G x' + K x = 0
+    (K, M positive definite).  Returns (S, L, finite): finite is False when a
+    Cholesky factor failed (K or M not positive definite).
     """
     n = M.shape[0]
     LK = jnp.linalg.cholesky(K)
@@ -87,10 +66,34 @@ def skew_frequencies(M, G, K):
     A = jnp.block([[Z, K], [-K, -G]])
     X = jax.scipy.linalg.solve_triangular(Lb, A, lower=True)
     S = jax.scipy.linalg.solve_triangular(Lb, X.T, lower=True).T
-    S = 0.5 * (S - S.T)
+    return 0.5 * (S - S.T), Lb, jnp.all(jnp.isfinite(LK)) & jnp.all(jnp.isfinite(LM))
+
+
+@jax.jit
+def _skew_modes(M, G, K):
+    n = M.shape[0]
+    S, Lb, finite = _skew_matrix(M, G, K)
+    w, U = jnp.linalg.eigh(1j * S)  # S v = i omega v  <=>  (i S) v = -omega v
+    omega = -w[:n][::-1]  # the n negative w, as ascending omega > 0
+    U = U[:, :n][:, ::-1]
+    Zs = jax.scipy.linalg.solve_triangular(Lb.T.astype(U.dtype), U, lower=False)
+    ok = finite & jnp.all(omega > 0)
+    return ok, omega, Zs[:n, :]
+
+
+def skew_frequencies(M, G, K):
+    """Circular frequencies only (rad/s, ascending) of M x'' + G x' + K x = 0, K and M > 0.
+
+    The real skew matrix S of :func:`_skew_matrix` has eigenvalues +-i omega, so
+    S^T S = -S^2 is symmetric with eigenvalues omega^2, each twice: a real
+    ``eigvalsh`` (no eigenvectors, no complex arithmetic) instead of the complex
+    Hermitian ``eigh``, about 3x cheaper.  Returns (ok, omega); ok is False when a
+    Cholesky factor fails (K not positive definite: unstable or rigid modes).
+    """
+    S, _, finite = _skew_matrix(M, G, K)
     w2 = jnp.linalg.eigvalsh(S.T @ S)
     omega = jnp.sqrt(jnp.clip(w2[0::2], 0.0, None))
-    ok = jnp.all(jnp.isfinite(LK)) & jnp.all(jnp.isfinite(LM)) & jnp.all(w2 > 0)
+    ok = finite & jnp.all(w2 > 0)
     return ok, omega
 
 
