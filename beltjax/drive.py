@@ -354,7 +354,6 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None):
     """Applied forces on the bodies (nb, 3): spring moment on the arm, weights (N, N m)."""
     f = jnp.zeros_like(bodies)
     if scene.tensioner is not None:
-        t = scene.tensioner
         f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
     if scene.model.has("gravity"):
         f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
@@ -397,11 +396,6 @@ def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_fu
     c = transport_speed(scene, inst, speed)
     F = full_forces(q, v, scene, inst, c)
     return J.T @ M @ J, J.T @ (F - M @ gamma)
-
-
-def reduced_forces(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_full=None):
-    """F_ii only (N, N m); cheaper than :func:`reduced_system` when the mass is not needed."""
-    return reduced_system(qi, qi_dot, scene, inst, speed, M_full)[1]
 
 
 def static_residual(qi, scene: Scene, inst: Installation, speed=0.0):

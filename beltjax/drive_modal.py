@@ -147,12 +147,12 @@ def _modes_core(M, G, K, n_rigid: int, gyroscopic: bool, v0=None):
 
 
 @partial(jax.jit, static_argnames=("gyroscopic",))
-def _frequencies(scene: Scene, speed, gyroscopic: bool):
-    qi, inst, info = statics.equilibrium(scene, speed=speed)
+def _modes_at(scene: Scene, qi, inst, speed, gyroscopic: bool):
+    """Modes about a given equilibrium (qi, inst) at belt speed ``speed`` (m/s), jitted."""
     M, G, K = linearise(qi, scene, inst, speed)
     stable, f, shapes = _modes_core(M, G, K, n_rigid_modes(scene), gyroscopic, rigid_mode(scene, inst))
     J = jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(qi)
-    return dict(stable=stable, freqs=f, shapes=shapes, qi=qi, inst=inst, converged=info[0] > 0.5, M=M, G=G, K=K, J=J)
+    return dict(stable=stable, freqs=f, shapes=shapes, M=M, G=G, K=K, J=J)
 
 
 def frequencies(scene: Scene, speed=None):
@@ -339,7 +339,8 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     v = float(drive.belt_speed(scene)) if speed is None else float(speed)
     st = statics.analyse_statics(scene, v)
     gyro = scene.model.has("transport") and v != 0.0
-    out = _frequencies(drive.canonical(scene), v, gyro)
+    qi = jnp.asarray(st.qi)
+    out = _modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
     stable = bool(out["stable"])
     n = drive.n_independent(scene)
     if not stable:
@@ -351,7 +352,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
             return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st)
     freqs = np.asarray(out["freqs"])
     shapes = np.asarray(out["shapes"])
-    labels, shares = label_modes(freqs, shapes, out["qi"], scene, out["inst"], out["J"])
+    labels, shares = label_modes(freqs, shapes, qi, scene, st.inst, out["J"])
     Vr = np.real(shapes * np.exp(-1j * np.angle(np.sum(shapes**2, axis=0)) / 2))
     Vr = Vr / np.maximum(np.max(np.abs(Vr), axis=0, keepdims=True), 1e-300)
     return ModalResult(freqs, labels, True, np.zeros(0, complex), shares, v, n, Vr, st)

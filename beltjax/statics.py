@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -330,15 +331,9 @@ class StaticResult:
 _install_jit = jax.jit(install)
 
 
-@jax.jit
-def _statics_core(scene: Scene, speed):
-    qi, inst, info = equilibrium(scene, speed=speed)
-    return _outputs(scene, qi, inst, speed), info
-
-
-@jax.jit
-def _statics_stepped(scene: Scene, speed):
-    qi, inst, info = equilibrium(scene, speed=speed, steps=8)
+@partial(jax.jit, static_argnames=("steps",))
+def _statics_core(scene: Scene, speed, steps: int = 1):
+    qi, inst, info = equilibrium(scene, speed=speed, steps=steps)
     return _outputs(scene, qi, inst, speed), info
 
 
@@ -365,7 +360,7 @@ def analyse_statics(scene: Scene, speed: float | None = None) -> StaticResult:
     v = float(drive.belt_speed(scene)) if speed is None else float(speed)
     out, (conv, it, rn) = _statics_core(scene, v)
     if not float(conv) > 0.5:
-        out, (conv, it, rn) = _statics_stepped(scene, v)
+        out, (conv, it, rn) = _statics_core(scene, v, steps=8)
     if not float(conv) > 0.5:
         raise StaticsError(f"no static equilibrium found (Newton stalled at residual {float(rn):.3g})", "statics")
     names = drive.span_names(scene)

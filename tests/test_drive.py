@@ -325,3 +325,27 @@ def test_rotational_fidelity_shares_the_statics_and_finds_the_torsional_mode(ref
     driven = drive_modal.analyse_modes(_rotational(text.replace("driven = false ", "driven = true ")))
     assert driven.n_independent == 1
     assert abs(driven.frequencies_hz[0] / checks["crank_prescribed_torsional_frequency_hz"] - 1) < 0.02
+
+
+def test_reduced_equations_agree_with_the_linearisation():
+    """drive.reduced_system (M_ii = J^T M J, F_ii = J^T (F - M gamma), the equations the
+    transients integrate) gives the modal M, G and the static residual (tensioner bench:
+    a nonlinear kinematic map through the arm)."""
+    sc = drive.canonical(_with(load_scene(SCENES / "tensioner_bench_stage2.toml"), elements_per_span=4))
+    v = 15.0
+
+    @jax.jit
+    def check(sc):
+        qi, inst, _ = statics.equilibrium(sc, speed=v)
+        qi = qi.at[3].add(0.01)  # off equilibrium: the arm turned
+        z = jnp.zeros_like(qi)
+        M, F = drive.reduced_system(qi, z, sc, inst, v)
+        G = -jax.jacfwd(lambda w: drive.reduced_system(qi, w, sc, inst, v)[1])(z)
+        Ml, Gl, _ = drive_modal.linearise(qi, sc, inst, v)
+        return M, F, G, Ml, Gl, drive.static_residual(qi, sc, inst, v)
+
+    M, F, G, Ml, Gl, R = check(sc)
+    np.testing.assert_allclose(M, Ml, rtol=1e-12, atol=1e-12 * np.abs(Ml).max())
+    np.testing.assert_allclose(F, R, rtol=1e-10, atol=1e-10 * np.abs(R).max())
+    np.testing.assert_allclose(G, Gl, rtol=1e-10, atol=1e-10 * np.abs(Gl).max())
+    assert np.abs(R).max() > 1.0  # a real residual off equilibrium
