@@ -189,43 +189,104 @@ def _split(qi, scene: Scene):
 
 
 def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
-    """Pulley rotation perturbations (n,) rad in route order, and the arm angle (rad)."""
+    """Pulley rotation perturbations (n,) rad in route order, and the arm angle (rad).
+
+    driven_angle: rotation perturbation of the driven pulleys (rad), a scalar or (n,) in
+    route order (entries of free pulleys ignored).
+    """
     rigid, _ = _split(qi, scene)
     free = is_free(scene)
+    driven = jnp.broadcast_to(jnp.asarray(driven_angle, dtype=qi.dtype), (len(free),))
     k, phis = 0, []
-    for f in free:
+    for i, f in enumerate(free):
         if f:
             phis.append(rigid[k])
             k += 1
         else:
-            phis.append(jnp.asarray(driven_angle, dtype=qi.dtype))
+            phis.append(driven[i])
     theta = inst.arm_angle + (rigid[-1] if scene.tensioner is not None else 0.0)
     return jnp.stack(phis), theta
 
 
-def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0):
-    """The kinematic map q = Phi(q_i): full coordinates from independent ones.
+def belt_travel(scene: Scene, t):
+    """Nominal belt travel x_b(t) (m) along the route, set by the drive pulley's prescribed
+    mean motion: speed |speed_rpm|, run-up at acceleration_rpm_per_s up to target_speed_rpm.
+
+    Its first and second time derivatives (m/s, m/s^2) are the belt speed and acceleration
+    (by autodiff).  The speed fluctuation is not part of it (see :func:`driven_perturbation`).
+    """
+    p = scene.pulley(scene.route.order[drive_pulley(scene)])
+    rpm = 2 * jnp.pi / 60.0
+    w0 = jnp.abs(p.speed_rpm) * rpm
+    a = p.acceleration_rpm_per_s * rpm
+    if p.target_speed_rpm is None:
+        return p.radius * (w0 * t + 0.5 * a * t**2)
+    wT = p.target_speed_rpm * rpm
+    t_star = (wT - w0) / jnp.where(a == 0.0, 1.0, a)
+    tau = jnp.minimum(t, t_star)
+    return p.radius * (w0 * tau + 0.5 * a * tau**2 + wT * (t - tau))
+
+
+def driven_perturbation(scene: Scene, t):
+    """Prescribed rotation perturbation of each route entry (rad, CCW), shape (n,): the drive
+    pulley's harmonic speed fluctuation A sin(2 pi f t) along its running sense when the
+    ``speed_fluctuation`` effect is on; zero elsewhere."""
+    n = len(scene.route.order)
+    out = jnp.zeros(n)
+    if scene.model.has("speed_fluctuation"):
+        k = drive_pulley(scene)
+        p = scene.pulley(scene.route.order[k])
+        sense = float(scene.route.senses[k])
+        A = jnp.deg2rad(p.fluctuation_amplitude_deg)
+        out = out.at[k].set(sense * A * jnp.sin(2 * jnp.pi * p.fluctuation_frequency_hz * t))
+    return out
+
+
+def n_reaction_points(scene: Scene) -> int:
+    """Bearings whose reactions are reported: one per route entry, plus the arm pivot."""
+    return len(scene.route.order) + (1 if scene.tensioner is not None else 0)
+
+
+def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=None, shift=None):
+    """The kinematic map q = Phi(q_i, t): full coordinates from independent ones.
 
     qi: independent coordinates (m, rad, -); driven_angle: prescribed rotation
-    perturbation of driven pulleys (rad).  Returns the full vector: span
-    coordinates (n spans x 4 (N+1)), then (x, y, angle) per body (m, rad).
+    perturbation of driven pulleys (rad, scalar or (n,) route order); t: time (s), for
+    transients: each pulley then also turns by its nominal rolling angle
+    s_i x_b(t) / R_i (:func:`belt_travel`) and the drive pulley's fluctuation is added;
+    None (statics, modes) leaves both out.  shift: virtual displacement (m) of every
+    bearing, shape (n_reaction_points, 2) (route entries, then the arm pivot), used to
+    compute bearing reactions; None = 0.  Returns the full vector: span coordinates
+    (n spans x 4 (N+1)), then (x, y, angle) per body (m, rad); with ``unbalance`` the
+    (x, y) of a pulley is its centre of mass, offset by cm_offset turning with it.
     """
     order = scene.route.order
     n = len(order)
     N = span_elements(scene)
     _, spans = _split(qi, scene)
+    if t is not None:
+        driven_angle = driven_angle + driven_perturbation(scene, t)
     phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
-    centers, radii = scene.layout(theta) if scene.tensioner is not None else (inst.centers, inst.radii)
+    if scene.tensioner is not None:
+        tt = scene.tensioner
+        pivot_shift = 0.0 if shift is None else shift[-1]
+        centers, radii = scene.layout(theta)
+        is_idler = jnp.asarray([name == TENSIONER for name in order], dtype=qi.dtype)
+        centers = centers + is_idler[:, None] * pivot_shift
+    else:
+        centers, radii = inst.centers, inst.radii
+    if shift is not None:
+        centers = centers + shift[:n]
     senses = jnp.asarray(scene.route.senses, dtype=qi.dtype)
     nxt = (np.arange(n) + 1) % n
     slide = senses * radii * phi  # rim travel of each pulley along the belt (m)
-    t = inst.span_tangent
-    start = centers + (inst.span_start - inst.centers) + slide[:, None] * t
-    end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t
+    t_hat = inst.span_tangent
+    start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
+    end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
     parts = []
     for s in range(n):
         if spans is None:  # rotational: a bar between the end nodes; slopes are not used
-            slope = inst.stretch * t[s]
+            slope = inst.stretch * t_hat[s]
             nodes = jnp.concatenate([start[s], slope, end[s], slope])
             parts.append(nodes)
             continue
@@ -233,10 +294,21 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0):
         nodes = jnp.concatenate([start[s], body[:2], body[2:-2], end[s], body[-2:]])
         parts.append(nodes)
         assert nodes.shape[0] == 4 * (N + 1)
-    bodies = [jnp.concatenate([centers[i], phi[i][None]]) for i in range(n)]
+    angle = phi if t is None else phi + senses * belt_travel(scene, t) / inst.radii
+    unbalance = scene.model.has("unbalance")
+    bodies = []
+    for i in range(n):
+        pos = centers[i]
+        if unbalance and order[i] != TENSIONER:
+            e = scene.pulley(order[i]).cm_offset
+            c, sn = jnp.cos(angle[i]), jnp.sin(angle[i])
+            pos = pos + jnp.stack([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
+        bodies.append(jnp.concatenate([pos, angle[i][None]]))
     if scene.tensioner is not None:
         tt = scene.tensioner
         cm = tt.pivot + tt.arm_cm_distance * jnp.stack([jnp.cos(theta), jnp.sin(theta)])
+        if shift is not None:
+            cm = cm + shift[-1]
         bodies.append(jnp.concatenate([cm, theta[None]]))
     return jnp.concatenate(parts + bodies)
 
@@ -310,15 +382,18 @@ def _span_potential(e, sec: Section, Le, idx, bending, gravity: bool):
     return U
 
 
-def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot=0.0):
+def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, dissipative=False):
     """Forces on the coordinates of span ``s`` (N): elastic, plus the listed effects.
 
     e, e_dot: the span's coordinates and rates; c: transport speed (m/s of
     unstretched belt), c_dot its rate (m/s^2).  ``transport`` adds the
-    gyroscopic, centrifugal and rhoA dc/dt terms, ``gravity`` the weight.
+    gyroscopic, centrifugal and rhoA dc/dt terms, ``gravity`` the weight;
+    with ``dissipative`` (transients) ``belt_damping`` adds the viscous axial
+    force of CA (N s): Rayleigh function 1/2 int CA (d eps/dt)^2 dx.
     """
+    damp = dissipative and scene.model.has("belt_damping")
     if not flexible(scene):
-        return _bar_forces(e, s, scene, inst, c)
+        return _bar_forces(e, e_dot if damp else None, s, scene, inst, c)
     N = scene.model.elements_per_span
     idx = span.element_index(N)
     sec = section(scene)
@@ -327,7 +402,22 @@ def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot
     f = -jax.grad(_span_potential)(e, sec, Le, idx, scene.model.bending, grav)
     if scene.model.has("transport"):
         f = f + span.span_inertial_forces(e, e_dot, c, c_dot, sec.rhoA, Le, idx)
+    if damp:
+        f = f - jax.grad(_span_dissipation, argnums=1)(e, e_dot, scene.belt.CA, Le, idx)
     return f
+
+
+def _element_dissipation(e, e_dot, CA, L):
+    """Rayleigh function of an element (W): 1/2 int CA (r'.r'_t)^2 dx (Green-Lagrange strain rate)."""
+
+    def density(xi):
+        return 0.5 * CA * (ancf.slope(e, xi, L) @ ancf.slope(e_dot, xi, L)) ** 2
+
+    return L * jnp.sum(ancf.WEIGHTS * jax.vmap(density)(ancf.XI))
+
+
+def _span_dissipation(e, e_dot, CA, Le, idx):
+    return jnp.sum(jax.vmap(_element_dissipation, in_axes=(0, 0, None, None))(e[idx], e_dot[idx], CA, Le))
 
 
 def _bar_energy(e, L0, EA, rhoA, c):
@@ -343,21 +433,67 @@ def _bar_energy(e, L0, EA, rhoA, c):
     return 0.5 * EA * L0 * eps**2 - 0.5 * rhoA * c**2 * l2 / L0
 
 
-def _bar_forces(e, s: int, scene: Scene, inst: Installation, c=0.0):
-    """Forces of a span of the rotational model on its end nodes (N), shape (8,)."""
+def _bar_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0):
+    """Forces of a span of the rotational model on its end nodes (N), shape (8,).
+
+    e_dot: node rates for the viscous force (CA / L0) dl/dt along the bar (thesis eq. 4.15),
+    or None (no damping).
+    """
     L0 = element_length(scene, inst)[s]
     cc = c if scene.model.has("transport") else 0.0
-    return -jax.grad(_bar_energy)(e, L0, scene.belt.EA, scene.belt.rhoA, cc)
+    f = -jax.grad(_bar_energy)(e, L0, scene.belt.EA, scene.belt.rhoA, cc)
+    if e_dot is not None:
+        d = e[4:6] - e[0:2]
+        u = d / jnp.linalg.norm(d)
+        rate = u @ (e_dot[4:6] - e_dot[0:2])
+        fd = scene.belt.CA / L0 * rate * u
+        f = f.at[0:2].add(fd).at[4:6].add(-fd)
+    return f
 
 
-def body_forces(bodies, scene: Scene, inst: Installation | None = None):
-    """Applied forces on the bodies (nb, 3): spring moment on the arm, weights (N, N m)."""
+def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_dot=None, t=None):
+    """Applied forces on the bodies (nb, 3): spring moment on the arm, weights (N, N m).
+
+    With a time ``t`` (s; transients) and the bodies' rates ``bodies_dot``: the listed
+    damping effects (bearing: -c_b times the pulley's absolute speed; tensioner: -c
+    times the arm's speed, N m s/rad) and the [[torque]] loads (N m).
+    """
     f = jnp.zeros_like(bodies)
     if scene.tensioner is not None:
         f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
     if scene.model.has("gravity"):
         f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
+    if t is None:
+        return f
+    order = scene.route.order
+    if scene.model.has("bearing_damping"):
+        for i, name in enumerate(order):
+            if name != TENSIONER:
+                f = f.at[i, 2].add(-scene.pulley(name).bearing_damping * bodies_dot[i, 2])
+    if scene.tensioner is not None and scene.model.has("tensioner_damping"):
+        f = f.at[-1, 2].add(-scene.tensioner.damping * bodies_dot[-1, 2])
+    for load in scene.torques:
+        f = f.at[order.index(load.pulley), 2].add(torque(load, t))
     return f
+
+
+def _window(t, t_start, t_end):
+    on = t >= t_start
+    if t_end is not None:
+        on = on & (t < t_end)
+    return jnp.where(on, 1.0, 0.0)
+
+
+def torque(load, t):
+    """Moment of a [[torque]] load at time t (N m, CCW positive)."""
+    w = 2 * jnp.pi * load.frequency_hz * t + jnp.deg2rad(load.phase_deg)
+    return _window(t, load.t_start_s, load.t_end_s) * (load.mean_Nm + load.amplitude_Nm * jnp.sin(w))
+
+
+def span_load_force(load, t):
+    """Magnitude of a [[span_load]] force at time t (N), normal to the installed span."""
+    w = 2 * jnp.pi * load.frequency_hz * t + jnp.deg2rad(load.phase_deg)
+    return _window(t, load.t_start_s, load.t_end_s) * load.amplitude_N * jnp.sin(w)
 
 
 def spring_moment(theta, scene: Scene):
@@ -366,12 +502,24 @@ def spring_moment(theta, scene: Scene):
     return -t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
 
 
-def full_forces(q, q_dot, scene: Scene, inst: Installation, c=0.0, c_dot=0.0):
-    """Forces on all full coordinates (N, N m) for the listed effects."""
+def full_forces(q, q_dot, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, t=None):
+    """Forces on all full coordinates (N, N m) for the listed effects.
+
+    t: time (s) for transients: adds the dissipative effects and the loads; None gives the
+    conservative steady forces of statics and modal analysis.
+    """
     E, B = split_full(q, scene)
-    Ed, _ = split_full(q_dot, scene)
-    fs = [span_forces(E[s], Ed[s], s, scene, inst, c, c_dot) for s in range(E.shape[0])]
-    return jnp.concatenate(fs + [body_forces(B, scene, inst).reshape(-1)])
+    Ed, Bd = split_full(q_dot, scene)
+    dyn = t is not None
+    fs = [span_forces(E[s], Ed[s], s, scene, inst, c, c_dot, dissipative=dyn) for s in range(E.shape[0])]
+    if dyn and scene.span_loads:
+        names = span_names(scene)
+        for load in scene.span_loads:
+            s = names.index(load.span)
+            tan = inst.span_tangent[s]
+            normal = jnp.stack([-tan[1], tan[0]])
+            fs[s] = fs[s].at[4 * load.node : 4 * load.node + 2].add(span_load_force(load, t) * normal)
+    return jnp.concatenate(fs + [body_forces(B, scene, inst, Bd, t).reshape(-1)])
 
 
 # --------------------------------------------------------------------------- reduced equations
@@ -382,20 +530,43 @@ def transport_speed(scene: Scene, inst: Installation, speed):
     return speed / inst.stretch
 
 
-def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_full=None):
+def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_full=None, t=None):
     """Reduced mass matrix and forces: ``M_ii = J^T M J``, ``F_ii = J^T (F - M gamma)``.
 
-    qi, qi_dot: independent coordinates and rates; speed: belt speed (m/s).
-    Returns (M_ii, F_ii) in kg / kg m^2 and N / N m.
+    qi, qi_dot: independent coordinates and rates; speed: belt speed (m/s) when ``t`` is
+    None (steady motion).  t: time (s) of a transient: the map is then Phi(q_i, t), the
+    belt speed and its rate follow :func:`belt_travel`, and the damping effects and loads
+    act.  Returns (M_ii, F_ii) in kg / kg m^2 and N / N m.
     """
-    phi = lambda x: full_coordinates(x, scene, inst)  # noqa: E731
-    q, v = jax.jvp(phi, (qi,), (qi_dot,))
-    J = jax.jacfwd(phi)(qi)
-    _, gamma = jax.jvp(lambda x: jax.jvp(phi, (x,), (qi_dot,))[1], (qi,), (qi_dot,))
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
-    c = transport_speed(scene, inst, speed)
-    F = full_forces(q, v, scene, inst, c)
+    if t is None:
+        phi = lambda x: full_coordinates(x, scene, inst)  # noqa: E731
+        q, v = jax.jvp(phi, (qi,), (qi_dot,))
+        J = jax.jacfwd(phi)(qi)
+        _, gamma = jax.jvp(lambda x: jax.jvp(phi, (x,), (qi_dot,))[1], (qi,), (qi_dot,))
+        c = transport_speed(scene, inst, speed)
+        F = full_forces(q, v, scene, inst, c)
+        return J.T @ M @ J, J.T @ (F - M @ gamma)
+    t = jnp.asarray(t, dtype=qi.dtype)
+    one = jnp.ones_like(t)
+    phi_t = lambda x, tt: full_coordinates(x, scene, inst, t=tt)  # noqa: E731
+    rate = lambda x, tt: jax.jvp(phi_t, (x, tt), (qi_dot, one))[1]  # noqa: E731
+    q, v = jax.jvp(phi_t, (qi, t), (qi_dot, one))
+    _, gamma = jax.jvp(rate, (qi, t), (qi_dot, one))
+    J = jax.jacfwd(phi_t)(qi, t)
+    x, xd, xdd = _travel_rates(scene, t)
+    c, c_dot = xd / inst.stretch, xdd / inst.stretch
+    F = full_forces(q, v, scene, inst, c, c_dot, t=t)
     return J.T @ M @ J, J.T @ (F - M @ gamma)
+
+
+def _travel_rates(scene: Scene, t):
+    """Belt travel (m), speed (m/s) and acceleration (m/s^2) at time t (autodiff of belt_travel)."""
+    f = lambda tt: belt_travel(scene, tt)  # noqa: E731
+    d1 = lambda tt: jax.jvp(f, (tt,), (jnp.ones_like(tt),))[1]  # noqa: E731
+    x, v = jax.jvp(f, (t,), (jnp.ones_like(t),))
+    _, a = jax.jvp(d1, (t,), (jnp.ones_like(t),))
+    return x, v, a
 
 
 def static_residual(qi, scene: Scene, inst: Installation, speed=0.0):

@@ -70,8 +70,9 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
     column-equilibrated Newton matrix, so it suits systems of up to a few
     hundred unknowns.  The predictor is JWH's ``y_{n+1} = y_n``.
 
-    The solver state is ``ydot_n`` (units of y per unit time), initialised to
-    ``f(t0, y0)`` and re-initialised after a jump (``made_jump``).
+    The solver state is ``(ydot_n, factors, age)``: the rate (units of y per unit
+    time), initialised to ``f(t0, y0)`` and re-initialised after a jump
+    (``made_jump``), and the kept Newton-matrix factors with their age in steps.
 
     Fields:
 
@@ -84,6 +85,12 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
       iteration; False evaluates it once per step, at the predictor
       (simplified Newton: cheaper iterations, slower convergence; it can
       fail where the Jacobian changes much over a step).
+    * ``jacobian_every``: with ``full_newton=False``, the LU factors of the Newton
+      matrix are kept in the solver state and re-evaluated only every
+      ``jacobian_every`` steps (1 = every step), or at once when an iteration with
+      the kept factors fails to converge (the step is then redone with fresh
+      ones).  For drives that move little about their state this removes the
+      Jacobian (the dominant cost) from almost every step.
     * ``rtol``, ``atol``: convergence when the change of ``y_{n+1}`` by the last
       update, ``size`` (max norm over all components), times
       ``min(1, theta / (1 - theta))`` (Hairer & Wanner's estimate of the error
@@ -104,6 +111,7 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
     rho_inf: float = 1.0
     newton_iterations: int = eqx.field(default=8, static=True)
     full_newton: bool = eqx.field(default=True, static=True)
+    jacobian_every: int = eqx.field(default=1, static=True)
     rtol: float = 1e-10
     atol: float = 1e-12
 
@@ -117,6 +125,8 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
             raise ValueError(f"rho_inf must lie in [0, 1], got {self.rho_inf}")
         if int(self.newton_iterations) < 1:
             raise ValueError("newton_iterations must be >= 1")
+        if int(self.jacobian_every) < 1:
+            raise ValueError("jacobian_every must be >= 1")
 
     def order(self, terms):
         del terms
@@ -148,31 +158,38 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
     # ------------------------------------------------------------------ interface
 
     def init(self, terms, t0, t1, y0, args):
-        """Solver state: ydot at t0, f(t0, y0) (units of y per unit time)."""
-        return self._rate(terms, t0, t1, args)(t0, y0)
+        """Solver state: (ydot at t0 = f(t0, y0), Newton-matrix factors, their age in steps)."""
+        ydot0 = self._rate(terms, t0, t1, args)(t0, y0)
+        factors = self._factor_fn(terms, t0, t1, y0, ydot0, args)[1]
+        if self.full_newton:
+            a0 = ravel_pytree(ydot0)[0]
+            shapes = jax.eval_shape(factors, a0)
+            f0 = jax.tree_util.tree_map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
+        else:
+            a0, _ = self._predictor(ydot0, y0)
+            f0 = factors(a0)
+        return ydot0, f0, jnp.array(0)
 
-    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
-        """One generalized-alpha step t0 -> t1; returns (y1, None, dense_info, ydot1, result)."""
+    def _predictor(self, ydot0_tree, y0):
+        ydot0 = ravel_pytree(ydot0_tree)[0].astype(ravel_pytree(y0)[0].dtype)
+        _, _, gamma = generalized_alpha_parameters(self.rho_inf)
+        # JWH's "same y" predictor, y_{n+1} = y_n: robust for stiff (h omega >> 1) components,
+        # whose rates ydot_n carry large, undamped (rho_inf = 1) oscillations.
+        return (1.0 - 1.0 / gamma) * ydot0, ydot0
+
+    def _factor_fn(self, terms, t0, t1, y0, ydot0_tree, args):
+        """(residual(a), factor(a)) of the step t0 -> t1 from (y0, ydot0)."""
         rate = self._rate(terms, t0, t1, args)
-        ydot0_tree = solver_state
-        if made_jump is True:
-            ydot0_tree = rate(t0, y0)
-        elif made_jump is not False:
-            ydot0_tree = jax.lax.cond(made_jump, lambda: rate(t0, y0), lambda: solver_state)
-
         y0_flat, unravel = ravel_pytree(y0)
-        ydot0, _ = ravel_pytree(ydot0_tree)
-        ydot0 = ydot0.astype(y0_flat.dtype)
+        ydot0 = ravel_pytree(ydot0_tree)[0].astype(y0_flat.dtype)
         h = t1 - t0
         alpha_m, alpha_f, gamma = generalized_alpha_parameters(self.rho_inf)
         t_f = t0 + alpha_f * h
 
-        def y_next(a):
-            return y0_flat + h * ydot0 + gamma * h * (a - ydot0)
-
         def residual(a):
             ydot_m = ydot0 + alpha_m * (a - ydot0)
-            y_f = y0_flat + alpha_f * (y_next(a) - y0_flat)
+            y1 = y0_flat + h * ydot0 + gamma * h * (a - ydot0)
+            y_f = y0_flat + alpha_f * (y1 - y0_flat)
             f_val, _ = ravel_pytree(rate(t_f, unravel(y_f)))
             return ydot_m - f_val
 
@@ -185,6 +202,26 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
             J = J * row[:, None]
             col = 1.0 / jnp.max(jnp.abs(J), axis=0)
             return jsl.lu_factor(J * col[None, :]), row, col
+
+        return residual, factor
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        """One generalized-alpha step t0 -> t1; returns (y1, None, dense_info, state1, result)."""
+        rate = self._rate(terms, t0, t1, args)
+        ydot0_tree, factors_kept, age = solver_state
+        if made_jump is True:
+            ydot0_tree = rate(t0, y0)
+        elif made_jump is not False:
+            ydot0_tree = jax.lax.cond(made_jump, lambda: rate(t0, y0), lambda: ydot0_tree)
+
+        y0_flat, unravel = ravel_pytree(y0)
+        h = t1 - t0
+        _, _, gamma = generalized_alpha_parameters(self.rho_inf)
+        residual, factor = self._factor_fn(terms, t0, t1, y0, ydot0_tree, args)
+        a0, ydot0 = self._predictor(ydot0_tree, y0)
+
+        def y_next(a):
+            return y0_flat + h * ydot0 + gamma * h * (a - ydot0)
 
         def solve(factors, r):
             lu, row, col = factors
@@ -211,14 +248,34 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
             # converged or failed iterations are skipped (a cond, not a select)
             return jax.lax.cond(converged | ~finite, lambda c: c, newton_update, carry)
 
-        # JWH's "same y" predictor, y_{n+1} = y_n: robust for stiff (h omega >> 1) components,
-        # whose rates ydot_n carry large, undamped (rho_inf = 1) oscillations.
-        a0 = (1.0 - 1.0 / gamma) * ydot0
-        factors0 = factor(a0) if not self.full_newton else jax.eval_shape(factor, a0)
-        if self.full_newton:  # placeholder with the right structure, never used
-            factors0 = jax.tree_util.tree_map(lambda s: jnp.zeros(s.shape, s.dtype), factors0)
-        init = (a0, jnp.array(False), jnp.array(True), factors0, jnp.array(jnp.inf, dtype=a0.dtype))
-        a, converged, finite, _, _ = jax.lax.fori_loop(0, int(self.newton_iterations), body, init)
+        def newton(factors):
+            init = (a0, jnp.array(False), jnp.array(True), factors, jnp.array(jnp.inf, dtype=a0.dtype))
+            a, converged, finite, _, _ = jax.lax.fori_loop(0, int(self.newton_iterations), body, init)
+            return a, converged, finite
+
+        if self.full_newton:
+            a, converged, finite = newton(factors_kept)
+            new_state_factors, new_age = factors_kept, age
+        else:
+            every = int(self.jacobian_every)
+            if every == 1:
+                fresh = factor(a0)
+                a, converged, finite = newton(fresh)
+                new_state_factors, new_age = fresh, jnp.array(0)
+            else:
+                stale = (age >= every) | jnp.asarray(made_jump)
+                factors = jax.lax.cond(stale, lambda: factor(a0), lambda: factors_kept)
+                a, converged, finite = newton(factors)
+                retry = (~converged) & (~stale)
+
+                def redo():
+                    fresh = factor(a0)
+                    return (*newton(fresh), fresh, jnp.array(1))
+
+                def keep():
+                    return a, converged, finite, factors, jnp.where(stale, 1, age + 1)
+
+                a, converged, finite, new_state_factors, new_age = jax.lax.cond(retry, redo, keep)
 
         y1_flat = y_next(a)
         y1 = unravel(y1_flat)
@@ -229,7 +286,7 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
             diffrax.RESULTS.where(finite, diffrax.RESULTS.nonlinear_max_steps_reached, diffrax.RESULTS.nonfinite),
         )
         dense_info = dict(y0=y0, y1=y1)
-        return y1, None, dense_info, ydot1, result
+        return y1, None, dense_info, (ydot1, new_state_factors, new_age), result
 
     def func(self, terms, t0, y0, args):
         """The vector field f(t0, y0)."""

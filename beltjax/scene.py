@@ -67,6 +67,8 @@ EFFECTS = (
     "speed_fluctuation",  # harmonic fluctuation of a driven pulley's angle
 )
 FIDELITIES = ("ancf", "rotational")
+#: transient solvers (see beltjax.transient)
+SOLVERS = ("generalized_alpha", "tsit5", "dopri8", "kvaerno5")
 DIRECTIONS = geometry.DIRECTIONS
 TENSIONER = "tensioner"  # the idler's name in route.order (reserved)
 
@@ -103,7 +105,8 @@ class Pulley(eqx.Module):
 
     center (2,) m, radius m, mass kg, inertia kg m^2, speed_rpm rpm,
     acceleration_rpm_per_s rpm/s, fluctuation_amplitude_deg deg,
-    fluctuation_frequency_hz Hz, cm_offset (2,) m, bearing_damping N m s/rad.
+    fluctuation_frequency_hz Hz, cm_offset (2,) m, bearing_damping N m s/rad,
+    target_speed_rpm rpm (the run-up's end speed) or None.
     """
 
     name: str = eqx.field(static=True)
@@ -118,6 +121,7 @@ class Pulley(eqx.Module):
     fluctuation_frequency_hz: jax.Array
     cm_offset: jax.Array
     bearing_damping: jax.Array
+    target_speed_rpm: jax.Array | None = None
 
 
 class Tensioner(eqx.Module):
@@ -175,6 +179,61 @@ class Model(eqx.Module):
         return effect in self.effects
 
 
+class Torque(eqx.Module):
+    """A moment on a free pulley (N m, CCW positive) in a time window.
+
+    M(t) = mean_Nm + amplitude_Nm sin(2 pi frequency_hz t + phase) for
+    t_start_s <= t < t_end_s (s; t_end_s None = to the end), else 0.
+    """
+
+    pulley: str = eqx.field(static=True)
+    mean_Nm: jax.Array
+    amplitude_Nm: jax.Array
+    frequency_hz: jax.Array
+    phase_deg: jax.Array
+    t_start_s: jax.Array
+    t_end_s: jax.Array | None
+
+
+class SpanLoad(eqx.Module):
+    """A harmonic force (N) on an interior node of a span, normal to the installed span
+    (positive to the left of the belt's travel): F(t) = amplitude_N sin(2 pi frequency_hz t
+    + phase) for t_start_s <= t < t_end_s (s)."""
+
+    span: str = eqx.field(static=True)
+    node: int = eqx.field(static=True)
+    amplitude_N: jax.Array
+    frequency_hz: jax.Array
+    phase_deg: jax.Array
+    t_start_s: jax.Array
+    t_end_s: jax.Array | None
+
+
+class Initial(eqx.Module):
+    """Initial state of a transient, as a change from the static equilibrium: rotation_deg
+    maps free pulleys to an added rotation (deg, CCW); arm_angle_deg is the tensioner arm's
+    absolute initial angle (deg) or None.  The spans start straight between their moved ends."""
+
+    rotation_deg: tuple[tuple[str, float], ...] = eqx.field(static=True, default=())
+    arm_angle_deg: float | None = eqx.field(static=True, default=None)
+
+
+class Simulation(eqx.Module):
+    """Transient settings (static): solver name, step dt_s (s; fixed-step solvers and the first
+    step of adaptive ones), rho_inf (generalized-alpha), rtol/atol (adaptive solvers),
+    output_dt_s (s), output nodes ("<span>:<node>"; default each span's middle node),
+    max_steps (adaptive solvers)."""
+
+    solver: str = eqx.field(static=True, default="generalized_alpha")
+    dt_s: float | None = eqx.field(static=True, default=None)
+    rho_inf: float = eqx.field(static=True, default=0.9)
+    rtol: float = eqx.field(static=True, default=1e-6)
+    atol: float = eqx.field(static=True, default=1e-9)
+    output_dt_s: float | None = eqx.field(static=True, default=None)
+    nodes: tuple[str, ...] | None = eqx.field(static=True, default=None)
+    max_steps: int = eqx.field(static=True, default=1_000_000)
+
+
 class Scene(eqx.Module):
     """A validated drive: belt, pulleys (file order), optional tensioner, route, model."""
 
@@ -185,6 +244,10 @@ class Scene(eqx.Module):
     model: Model
     source: str = eqx.field(static=True, default="<dict>")
     description: str = eqx.field(static=True, default="")
+    torques: tuple[Torque, ...] = ()
+    span_loads: tuple[SpanLoad, ...] = ()
+    initial: Initial = Initial()
+    simulation: Simulation = Simulation()
 
     def pulley(self, name: str) -> Pulley:
         """The pulley called ``name`` (KeyError if none)."""
@@ -351,7 +414,9 @@ def _arr(x):
 
 # --------------------------------------------------------------------------- sections
 
-_TOP_KEYS = ("description", "belt", "pulley", "tensioner", "route", "model")
+_TOP_KEYS = (
+    "description", "belt", "pulley", "tensioner", "route", "model", "torque", "span_load", "initial", "simulation"
+)
 _BELT_KEYS = ("EA", "EI", "rhoA", "static_tension", "length", "CA")
 _PULLEY_KEYS = (
     "name",
@@ -366,8 +431,21 @@ _PULLEY_KEYS = (
     "fluctuation_frequency_hz",
     "cm_offset",
     "bearing_damping",
+    "target_speed_rpm",
 )
-_DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
+_DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "target_speed_rpm")
+_TORQUE_KEYS = ("pulley", "mean_Nm", "amplitude_Nm", "frequency_hz", "phase_deg", "t_start_s", "t_end_s")
+_SPAN_LOAD_KEYS = ("span", "node", "amplitude_N", "frequency_hz", "phase_deg", "t_start_s", "t_end_s")
+_INITIAL_KEYS = ("rotation_deg", "arm_angle_deg")
+_SIMULATION_KEYS = ("solver", "dt_s", "rho_inf", "rtol", "atol", "output_dt_s", "nodes", "max_steps")
+#: effect -> (what it needs, how to tell that the scene gives it)
+_EFFECT_PARAMETERS = {
+    "belt_damping": "belt.CA",
+    "bearing_damping": "pulley[i].bearing_damping",
+    "tensioner_damping": "tensioner.damping",
+    "unbalance": "pulley[i].cm_offset",
+    "speed_fluctuation": "pulley[i].fluctuation_amplitude_deg",
+}
 _TENSIONER_KEYS = (
     "pivot",
     "arm_length",
@@ -423,6 +501,17 @@ def _parse_pulley(data, i, source) -> Pulley:
     if math.hypot(*cm) >= radius:
         t.fail("cm_offset", f"offset {math.hypot(*cm)!r} m must be smaller than the radius {radius!r} m")
     bd = t.number("bearing_damping", required=False, default=0.0, nonnegative=True)
+    target = t.number("target_speed_rpm", required=False)
+    if target is not None:
+        if accel == 0.0:
+            t.fail("target_speed_rpm", "needs acceleration_rpm_per_s (a run-up) to reach it")
+        if (target - abs(speed)) * accel <= 0.0:
+            t.fail(
+                "target_speed_rpm",
+                f"{target!r} rpm cannot be reached from {abs(speed)!r} rpm with acceleration {accel!r} rpm/s",
+            )
+    if amp > 0.0 and freq == 0.0:
+        t.fail("fluctuation_frequency_hz", "missing (required with fluctuation_amplitude_deg > 0)")
     return Pulley(
         name=name,
         center=_arr(center),
@@ -436,6 +525,7 @@ def _parse_pulley(data, i, source) -> Pulley:
         fluctuation_frequency_hz=_arr(freq),
         cm_offset=_arr(cm),
         bearing_damping=_arr(bd),
+        target_speed_rpm=_arr(target),
     )
 
 
@@ -496,6 +586,139 @@ def _parse_model(data, source) -> Model:
             t.fail("effects", f"unknown effect {e!r} (known: {', '.join(EFFECTS)})")
     bending = t.string("bending", required=False, default="linear", choices=BENDING_MODELS)
     return Model(fidelity=fidelity, elements_per_span=n, effects=tuple(effects), bending=bending)
+
+
+def _window(t, key):
+    t0 = t.number("t_start_s", required=False, default=0.0, nonnegative=True)
+    t1 = t.number("t_end_s", required=False)
+    if t1 is not None and t1 <= t0:
+        t.fail("t_end_s", f"must be later than t_start_s = {t0!r}, got {t1!r}")
+    return _arr(t0), _arr(t1)
+
+
+def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
+    if not isinstance(data, list):
+        _fail("torque", f"expected an array of tables [[torque]], got {_describe(data)}", source)
+    out = []
+    for i, d in enumerate(data):
+        t = _Table(d, f"torque[{i}]", source, _TORQUE_KEYS)
+        name = t.string("pulley")
+        if name not in free_names:
+            t.fail(
+                "pulley",
+                f"{name!r} is not a free pulley of the route (free: {', '.join(free_names) or 'none'}; "
+                "a driven pulley's motion is prescribed)",
+            )
+        t0, t1 = _window(t, "torque")
+        out.append(
+            Torque(
+                pulley=name,
+                mean_Nm=_arr(t.number("mean_Nm", required=False, default=0.0)),
+                amplitude_Nm=_arr(t.number("amplitude_Nm", required=False, default=0.0)),
+                frequency_hz=_arr(t.number("frequency_hz", required=False, default=0.0, nonnegative=True)),
+                phase_deg=_arr(t.number("phase_deg", required=False, default=0.0)),
+                t_start_s=t0,
+                t_end_s=t1,
+            )
+        )
+    return tuple(out)
+
+
+def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLoad, ...]:
+    if not isinstance(data, list):
+        _fail("span_load", f"expected an array of tables [[span_load]], got {_describe(data)}", source)
+    out = []
+    for i, d in enumerate(data):
+        t = _Table(d, f"span_load[{i}]", source, _SPAN_LOAD_KEYS)
+        if fidelity != "ancf":
+            t.fail("span", "a span load needs the hybrid model (model.fidelity = \"ancf\"): "
+                   "the rotational model has no span nodes")
+        name = t.string("span")
+        if name not in spans:
+            t.fail("span", f"unknown span {name!r} (spans: {', '.join(spans)})")
+        node = t.integer("node")
+        if not 1 <= node <= n_elements - 1:
+            t.fail("node", f"must be an interior node, 1 to {n_elements - 1} (elements_per_span - 1), got {node!r}")
+        t0, t1 = _window(t, "span_load")
+        out.append(
+            SpanLoad(
+                span=name,
+                node=node,
+                amplitude_N=_arr(t.number("amplitude_N")),
+                frequency_hz=_arr(t.number("frequency_hz", nonnegative=True)),
+                phase_deg=_arr(t.number("phase_deg", required=False, default=0.0)),
+                t_start_s=t0,
+                t_end_s=t1,
+            )
+        )
+    return tuple(out)
+
+
+def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
+    t = _Table(data, "initial", source, _INITIAL_KEYS)
+    rot = t.raw("rotation_deg", False) or {}
+    if not isinstance(rot, dict):
+        t.fail("rotation_deg", f"expected a table of pulley = angle (deg), got {_describe(rot)}")
+    pairs = []
+    for name, v in rot.items():
+        if name not in free_names:
+            _fail(
+                f"initial.rotation_deg.{name}",
+                f"not a free pulley of the route (free: {', '.join(free_names) or 'none'})",
+                source,
+            )
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            _fail(f"initial.rotation_deg.{name}", f"expected a finite number (deg), got {_describe(v)}", source)
+        pairs.append((name, float(v)))
+    arm = t.number("arm_angle_deg", required=False)
+    if arm is not None and not has_tensioner:
+        t.fail("arm_angle_deg", "there is no [tensioner]")
+    return Initial(rotation_deg=tuple(pairs), arm_angle_deg=arm)
+
+
+def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
+    t = _Table(data, "simulation", source, _SIMULATION_KEYS)
+    solver = t.string("solver", required=False, default="generalized_alpha", choices=SOLVERS)
+    dt = t.number("dt_s", required=False, positive=True)
+    rho = t.number("rho_inf", required=False, default=0.9)
+    if not 0.0 <= rho <= 1.0:
+        t.fail("rho_inf", f"must lie in [0, 1], got {rho!r}")
+    rtol = t.number("rtol", required=False, default=1e-6, positive=True)
+    atol = t.number("atol", required=False, default=1e-9, positive=True)
+    out_dt = t.number("output_dt_s", required=False, positive=True)
+    nodes = t.strings("nodes", required=False)
+    if nodes is not None:
+        if fidelity != "ancf" and nodes:
+            t.fail("nodes", "node outputs need the hybrid model (model.fidelity = \"ancf\")")
+        for x in nodes:
+            name, _, k = x.rpartition(":")
+            if name not in spans or not k.isdigit() or not 0 <= int(k) <= n_elements:
+                t.fail("nodes", f"{x!r} is not \"<span>:<node>\" with a span of {', '.join(spans)} "
+                       f"and a node 0 to {n_elements}")
+        nodes = tuple(nodes)
+    max_steps = t.integer("max_steps", required=False, default=1_000_000, minimum=1)
+    return Simulation(solver=solver, dt_s=dt, rho_inf=rho, rtol=rtol, atol=atol, output_dt_s=out_dt,
+                      nodes=nodes, max_steps=max_steps)
+
+
+def _check_effects(data, scene: Scene, source: str):
+    """A parameter of an effect that is not switched on is an error, not silently ignored."""
+    model = scene.model
+    if float(scene.belt.CA) > 0 and not model.has("belt_damping"):
+        _fail("belt.CA", "given but \"belt_damping\" is not in model.effects", source)
+    if scene.tensioner is not None and float(scene.tensioner.damping) > 0 and not model.has("tensioner_damping"):
+        _fail("tensioner.damping", "given but \"tensioner_damping\" is not in model.effects", source)
+    for i, p in enumerate(scene.pulleys):
+        if float(p.bearing_damping) > 0 and not model.has("bearing_damping"):
+            _fail(f"pulley[{i}].bearing_damping", "given but \"bearing_damping\" is not in model.effects", source)
+        if float(jnp.linalg.norm(p.cm_offset)) > 0 and not model.has("unbalance"):
+            _fail(f"pulley[{i}].cm_offset", "given but \"unbalance\" is not in model.effects", source)
+        if float(p.fluctuation_amplitude_deg) > 0 and not model.has("speed_fluctuation"):
+            _fail(
+                f"pulley[{i}].fluctuation_amplitude_deg",
+                "given but \"speed_fluctuation\" is not in model.effects",
+                source,
+            )
 
 
 def _key_for(route_idx, scene_names, order):
@@ -577,6 +800,16 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         _fail("route", "missing (required table [route] with order = [...])", source)
     route = _parse_route(data["route"], [p.name for p in pulleys], tensioner is not None, source)
     model = _parse_model(data.get("model", {}), source)
+    order = route.order
+    spans = [f"{order[i]}-{order[(i + 1) % len(order)]}" for i in range(len(order))]
+    free_names = [n for n in order if n == TENSIONER or not next(p for p in pulleys if p.name == n).driven]
+    N = model.elements_per_span
+    torques = _parse_torques(data["torque"], free_names, source) if "torque" in data else ()
+    span_loads = (
+        _parse_span_loads(data["span_load"], spans, N, model.fidelity, source) if "span_load" in data else ()
+    )
+    initial = _parse_initial(data.get("initial", {}), free_names, tensioner is not None, source)
+    simulation = _parse_simulation(data.get("simulation", {}), spans, N, model.fidelity, source)
     scene = Scene(
         belt=belt,
         pulleys=pulleys,
@@ -585,7 +818,12 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         model=model,
         source=source,
         description=description,
+        torques=torques,
+        span_loads=span_loads,
+        initial=initial,
+        simulation=simulation,
     )
+    _check_effects(data, scene, source)
     g = _check_geometry(scene, source)
     if g is not None and tensioner is None and belt.length is not None:
         path = float(g.length)

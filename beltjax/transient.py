@@ -1,0 +1,442 @@
+"""Transients of whole drives with diffrax, for both fidelities (thesis ch. 4 and 7).
+
+The equations are the reduced ones of :func:`beltjax.drive.reduced_system` with time:
+``M_ii(q_i, t) q_i'' = F_ii(q_i, q_i', t)`` from the kinematic map ``q = Phi(q_i, t)``
+(pulleys rolling with the belt's prescribed travel, the drive pulley's speed
+fluctuation, unbalanced centres of mass), the listed effects (transport, gravity,
+damping of belt, bearings and tensioner) and the loads of the scene ([[torque]],
+[[span_load]]).  The hybrid (ANCF) and rotational (Newton-Euler) fidelities go
+through the same map and the same code; the rotational model has only the rigid
+coordinates (its spans are massless springs and dampers).
+
+The state is ``y = (q_i, q_i')``; diffrax integrates ``y' = (q_i', M_ii^-1 F_ii)``.
+Solvers (``[simulation] solver``): ``generalized_alpha`` (default: the
+fixed-step structural integrator of :mod:`beltjax.integrators`, implicit,
+second order, numerical damping of unresolved modes set by ``rho_inf``),
+``tsit5`` and ``dopri8`` (explicit, adaptive), ``kvaerno5`` (implicit, adaptive).
+The run starts from the static equilibrium at the initial belt speed, changed
+by the scene's ``[initial]`` table.  A solver failure raises
+:class:`TransientError`; it is never returned as a result.
+
+Outputs, at every ``output_dt_s`` (s): span tensions (elastic, N) and span
+forces on the pulleys (tension minus rhoA c^2 lam with ``transport``, N), bearing
+forces (the force each pulley, and the tensioner arm at its pivot, puts on its
+bearing, N: belt forces, weight and the body's inertia), pulley speeds (rpm) and
+rotation perturbations (deg), arm angle (deg), spring moment (N m), the torque
+that holds each driven pulley on its prescribed motion (N m), and the normal
+displacement of chosen span nodes from the installed span line (m).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import drive, signals, statics
+from beltjax.integrators import GeneralizedAlpha
+from beltjax.scene import TENSIONER, Scene
+
+__all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt"]
+
+
+class TransientError(ValueError):
+    """A transient that cannot be run or whose solver failed (one-line message)."""
+
+
+# --------------------------------------------------------------------------- set-up
+
+#: generalized-alpha Newton matrix kept for this many steps (refreshed at once if it fails)
+JACOBIAN_EVERY = 200
+#: Newton tolerance of the implicit steps: relative to max|y|, and absolute (units of y)
+NEWTON_RTOL, NEWTON_ATOL = 1e-9, 1e-9
+
+
+def default_dt(scene: Scene) -> float:
+    """Default time step (s): 1e-4 (resolves the response to 1 kHz), or the scene's dt_s."""
+    return scene.simulation.dt_s if scene.simulation.dt_s is not None else 1e-4
+
+
+def default_output_dt(scene: Scene) -> float:
+    """Default output interval (s): 5e-4 for the hybrid model (spectra to 1 kHz), 1e-3 rotational."""
+    if scene.simulation.output_dt_s is not None:
+        return scene.simulation.output_dt_s
+    return max(5e-4 if drive.flexible(scene) else 1e-3, default_dt(scene))
+
+
+def output_nodes(scene: Scene) -> list[tuple[int, int, str]]:
+    """(span index, node, label) of the span nodes whose displacement is recorded."""
+    if not drive.flexible(scene):
+        return []
+    names = drive.span_names(scene)
+    N = scene.model.elements_per_span
+    chosen = scene.simulation.nodes
+    if chosen is None:
+        chosen = [f"{nm}:{N // 2}" for nm in names]
+    out = []
+    for x in chosen:
+        nm, _, k = x.rpartition(":")
+        out.append((names.index(nm), int(k), x))
+    return out
+
+
+def _rigid_index(scene: Scene) -> dict[str, int]:
+    """Position in q_i of each free route entry's rotation, and of the arm ("arm")."""
+    idx, k = {}, 0
+    for name, free in zip(scene.route.order, drive.is_free(scene)):
+        if free:
+            idx[name] = k
+            k += 1
+    if scene.tensioner is not None:
+        idx["arm"] = k
+    return idx
+
+
+def _straighten(qi_new, qi_old, scene: Scene, inst) -> jax.Array:
+    """Spans of qi_new moved so that each stays straight between its (moved) end nodes."""
+    if not drive.flexible(scene):
+        return qi_new
+    N = scene.model.elements_per_span
+    n = len(scene.route.order)
+    Ea, _ = drive.split_full(drive.full_coordinates(qi_old, scene, inst), scene)
+    Eb, _ = drive.split_full(drive.full_coordinates(qi_new, scene, inst), scene)
+    d0 = Eb[:, 0:2] - Ea[:, 0:2]
+    d1 = Eb[:, 4 * N : 4 * N + 2] - Ea[:, 4 * N : 4 * N + 2]
+    Lspan = drive.element_length(scene, inst) * N
+    x = jnp.linspace(0.0, 1.0, N + 1)
+    dpos = (1 - x)[None, :, None] * d0[:, None, :] + x[None, :, None] * d1[:, None, :]
+    dslope = jnp.broadcast_to(((d1 - d0) / Lspan[:, None])[:, None, :], (n, N + 1, 2))
+    dnodes = jnp.concatenate([dpos, dslope], axis=-1).reshape(n, 4 * (N + 1))
+    dspans = jnp.concatenate([dnodes[:, 2 : 4 * N], dnodes[:, 4 * N + 2 :]], axis=1)
+    nr = drive.n_rigid(scene)
+    return qi_new.at[nr:].add(dspans.reshape(-1))
+
+
+def initial_state(scene: Scene):
+    """(installation, q_i(0), q_i'(0)): the static equilibrium at the initial belt speed with
+    the ``[initial]`` changes (added pulley rotations, arm angle); spans straight between
+    their moved ends.  Raises StaticsError (one line) when the drive has no equilibrium."""
+    st = statics.analyse_statics(scene, speed=float(drive.belt_speed(scene)))
+    inst, qi0 = st.inst, jnp.asarray(st.qi)
+    ini = scene.initial
+    if ini.rotation_deg or ini.arm_angle_deg is not None:
+        idx = _rigid_index(scene)
+        qi = qi0
+        for name, deg in ini.rotation_deg:
+            qi = qi.at[idx[name]].add(math.radians(deg))
+        if ini.arm_angle_deg is not None:
+            qi = qi.at[idx["arm"]].set(math.radians(ini.arm_angle_deg) - inst.arm_angle)
+        qi0 = _straighten(qi, qi0, scene, inst)
+    return inst, qi0, jnp.zeros_like(qi0)
+
+
+# --------------------------------------------------------------------------- equations
+
+
+def vector_field(scene: Scene, inst):
+    """f(t, y, args) of y = (q_i, q_i') for diffrax.ODETerm (m, rad, m/s, rad/s per s)."""
+    M_full = drive.full_mass_matrix(scene, inst)
+    n = drive.n_independent(scene)
+
+    def f(t, y, args):
+        del args
+        qi, qd = y[:n], y[n:]
+        M, F = drive.reduced_system(qi, qd, scene, inst, M_full=M_full, t=t)
+        return jnp.concatenate([qd, jnp.linalg.solve(M, F)])
+
+    return f
+
+
+def _solver(scene: Scene, dt: float):
+    sim = scene.simulation
+    name = sim.solver
+    if name == "generalized_alpha":
+        solver = GeneralizedAlpha(
+            rho_inf=sim.rho_inf, full_newton=False, jacobian_every=JACOBIAN_EVERY, newton_iterations=12,
+            rtol=NEWTON_RTOL, atol=NEWTON_ATOL,
+        )
+        return solver, diffrax.ConstantStepSize()
+    ctrl = diffrax.PIDController(rtol=sim.rtol, atol=sim.atol)
+    if name == "tsit5":
+        return diffrax.Tsit5(), ctrl
+    if name == "dopri8":
+        return diffrax.Dopri8(), ctrl
+    if name == "kvaerno5":
+        return diffrax.Kvaerno5(), ctrl
+    raise TransientError(f"simulation.solver: unknown solver {name!r}")
+
+
+@eqx.filter_jit
+def _integrate_chunk(scene: Scene, inst, y0, ts, dt, max_steps: int):
+    """Integrate from ts[0] to ts[-1], saving at ts; returns (ys, result code, steps)."""
+    solver, controller = _solver(scene, 1.0)
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(vector_field(scene, inst)),
+        solver,
+        t0=ts[0],
+        t1=ts[-1],
+        dt0=dt,
+        y0=y0,
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=controller,
+        max_steps=max_steps,
+        throw=False,
+    )
+    return sol.ys, sol.result._value, sol.stats["num_steps"]
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+def _outputs_one(t, y, scene: Scene, inst, M_full):
+    """All output channels at one saved state (t s, y)."""
+    n_i = drive.n_independent(scene)
+    qi, qd = y[:n_i], y[n_i:]
+    n = len(scene.route.order)
+    nrp = drive.n_reaction_points(scene)
+    one = jnp.ones_like(t)
+
+    def phi(x, tt, shift, drv):
+        return drive.full_coordinates(x, scene, inst, driven_angle=drv, t=tt, shift=shift)
+
+    shift0 = jnp.zeros((nrp, 2))
+    drv0 = jnp.zeros(n)
+    g = lambda x, tt: phi(x, tt, shift0, drv0)  # noqa: E731
+    q, v = jax.jvp(g, (qi, t), (qd, one))
+    _, gamma = jax.jvp(lambda x, tt: jax.jvp(g, (x, tt), (qd, one))[1], (qi, t), (qd, one))
+    M, F_ii = drive.reduced_system(qi, qd, scene, inst, M_full=M_full, t=t)
+    qdd = jnp.linalg.solve(M, F_ii)
+    J = jax.jacfwd(g)(qi, t)
+    a = J @ qdd + gamma
+    _, xd, xdd = drive._travel_rates(scene, t)
+    c = xd / inst.stretch
+    F = drive.full_forces(q, v, scene, inst, c, xdd / inst.stretch, t=t)
+    R = F - M_full @ a  # applied minus inertial: what the constraints must balance
+    Js = jax.jacfwd(lambda s: phi(qi, t, s, drv0))(shift0)  # (nq, nrp, 2)
+    bearings = jnp.einsum("q,qkd->kd", R, Js)
+    Jd = jax.jacfwd(lambda d: phi(qi, t, shift0, d))(drv0)  # (nq, n)
+    hold = -(R @ Jd)  # torque the drive applies to keep a driven pulley on its motion
+
+    E, B = drive.split_full(q, scene)
+    _, Bd = drive.split_full(v, scene)
+    tensions = drive.span_tensions(q, scene, inst)
+    lam = drive.full_span_lengths(q, scene) / (drive.element_length(scene, inst) * drive.span_elements(scene))
+    forces = tensions
+    if scene.model.has("transport"):
+        forces = tensions - scene.belt.rhoA * c**2 * lam
+    phis, theta = drive.angles_and_arm(qi, scene, inst, driven_angle=drive.driven_perturbation(scene, t))
+    out = dict(
+        span_tensions_N=tensions,
+        span_forces_N=forces,
+        hub_forces_N=bearings,
+        hub_force_magnitudes_N=jnp.linalg.norm(bearings, axis=1),
+        pulley_speeds_rpm=Bd[:n, 2] * 60.0 / (2 * jnp.pi),
+        pulley_rotations_deg=jnp.rad2deg(phis),
+        drive_torques_Nm=hold,
+        belt_speed_m_s=xd,
+    )
+    if scene.tensioner is not None:
+        out["arm_angle_deg"] = jnp.rad2deg(theta)
+        out["spring_moment_Nm"] = drive.spring_moment(theta, scene)
+    nodes = output_nodes(scene)
+    if nodes:
+        disp = []
+        for s, k, _ in nodes:
+            r = E[s, 4 * k : 4 * k + 2]
+            N = scene.model.elements_per_span
+            r0 = inst.span_start[s] + (k / N) * (inst.span_end[s] - inst.span_start[s])
+            tan = inst.span_tangent[s]
+            disp.append((r - r0) @ jnp.stack([-tan[1], tan[0]]))
+        out["node_displacements_m"] = jnp.stack(disp)
+    return out
+
+
+@eqx.filter_jit
+def _outputs(ts, ys, scene: Scene, inst):
+    M_full = drive.full_mass_matrix(scene, inst)
+    return jax.vmap(lambda t, y: _outputs_one(t, y, scene, inst, M_full))(ts, ys)
+
+
+def _columns(scene: Scene) -> dict[str, list[str]]:
+    order = list(scene.route.order)
+    bearings = order + (["tensioner pivot"] if scene.tensioner is not None else [])
+    cols = dict(
+        span_tensions_N=drive.span_names(scene),
+        span_forces_N=drive.span_names(scene),
+        hub_forces_N=bearings,
+        hub_force_magnitudes_N=bearings,
+        pulley_speeds_rpm=order,
+        pulley_rotations_deg=order,
+        drive_torques_Nm=[n for n, f in zip(order, drive.is_free(scene)) if not f],
+    )
+    nodes = output_nodes(scene)
+    if nodes:
+        cols["node_displacements_m"] = [lab for _, _, lab in nodes]
+    return cols
+
+
+UNITS = dict(
+    span_tensions_N="N",
+    span_forces_N="N",
+    hub_forces_N="N",
+    hub_force_magnitudes_N="N",
+    pulley_speeds_rpm="rpm",
+    pulley_rotations_deg="deg",
+    drive_torques_Nm="N m",
+    belt_speed_m_s="m/s",
+    arm_angle_deg="deg",
+    spring_moment_Nm="N m",
+    node_displacements_m="m",
+)
+
+
+# --------------------------------------------------------------------------- result
+
+
+@dataclass
+class SimulationResult:
+    """Time histories of a transient.
+
+    t (nt,) s; channels: name -> array (nt,), (nt, k) or (nt, k, 2) in the units of
+    :data:`UNITS`; columns: name -> labels of the k columns; meta: solver, step, steps,
+    wall and compile times (s), scene; y: the state (nt, 2 n_i) for further use.
+    """
+
+    t: np.ndarray
+    channels: dict
+    columns: dict
+    meta: dict
+    y: np.ndarray = field(repr=False)
+
+    def summary(self, settle_fraction: float = 0.0) -> dict:
+        """JSON-ready summary: per channel and column mean, min, max, peak-to-peak, dominant Hz."""
+        chans = {k: v for k, v in self.channels.items() if k != "belt_speed_m_s"}
+        return dict(
+            meta=self.meta,
+            units={k: UNITS[k] for k in chans},
+            channels=signals.summarise(self.t, chans, self.columns, settle_fraction=settle_fraction),
+        )
+
+    def save_npz(self, path) -> None:
+        """Write t, every channel and the column labels to an .npz file."""
+        arrays = {"t_s": self.t, **self.channels}
+        for k, cols in self.columns.items():
+            arrays[f"{k}__columns"] = np.asarray(cols)
+        np.savez_compressed(path, **arrays)
+
+
+_RESULT_MESSAGES = {
+    "nonlinear_max_steps_reached": "the implicit (Newton) iteration did not converge",
+    "max_steps_reached": "the solver hit max_steps (simulation.max_steps)",
+    "dt_min_reached": "the step size collapsed",
+    "nonfinite": "the state became non-finite",
+}
+
+
+def _result_name(code: int) -> str:
+    for name, val in diffrax.RESULTS._name_to_item.items():
+        if int(val._value) == int(code):
+            return name
+    return f"code {int(code)}"
+
+
+def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: float | None = None,
+             chunk_s: float | None = None, progress: bool = False) -> SimulationResult:
+    """Run a transient of ``scene`` from t = 0 to ``t_end`` (s).
+
+    dt: time step (s; default :func:`default_dt`); output_dt: output interval (s;
+    default :func:`default_output_dt`, rounded to a whole number of steps for fixed-step
+    solvers); chunk_s: the run is integrated in chunks of this length (s) with one
+    compiled function, printing progress to stderr when ``progress``.  Raises
+    :class:`TransientError` (one line) for bad arguments or a failed solver, and
+    StaticsError when the drive has no equilibrium to start from.
+    """
+    if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
+        raise TransientError(f"t_end: must be a finite time > 0 s, got {t_end!r}")
+    scene = drive.canonical(scene)
+    dt = default_dt(scene) if dt is None else float(dt)
+    if not (math.isfinite(dt) and 0 < dt < t_end):
+        raise TransientError(f"dt: must be > 0 and below t_end = {t_end!r} s, got {dt!r}")
+    out_dt = default_output_dt(scene) if output_dt is None else float(output_dt)
+    fixed = scene.simulation.solver == "generalized_alpha"
+    if fixed:
+        out_dt = max(1, round(out_dt / dt)) * dt
+    n_out = int(math.floor(t_end / out_dt + 1e-9))
+    per_chunk = max(1, int(round((chunk_s or max(0.05, min(0.5, t_end / 20))) / out_dt)))
+    n_chunks = -(-n_out // per_chunk)
+    steps_per_chunk = int(math.ceil(per_chunk * out_dt / dt)) + 8
+    max_steps = steps_per_chunk if fixed else scene.simulation.max_steps
+
+    wall0 = time.perf_counter()
+    inst, qi0, qd0 = initial_state(scene)
+    y = jnp.concatenate([qi0, qd0])
+    ts_all, ys_all, steps = [np.zeros(1)], [np.asarray(y)[None]], 0
+    compile_s = None
+    for c in range(n_chunks):
+        k0 = c * per_chunk
+        ts = (k0 + np.arange(per_chunk + 1)) * out_dt
+        t0 = time.perf_counter()
+        ys, code, nst = _integrate_chunk(scene, inst, y, jnp.asarray(ts), dt, max_steps)
+        code = int(code)
+        if compile_s is None:
+            compile_s = time.perf_counter() - t0
+        if code != 0:
+            name = _result_name(code)
+            why = _RESULT_MESSAGES.get(name, name)
+            raise TransientError(
+                f"solver {scene.simulation.solver} failed between t = {ts[0]:.4g} s and {ts[-1]:.4g} s: "
+                f"{why}; try a smaller simulation.dt_s (now {dt:.3g} s)"
+            )
+        ys = np.asarray(ys)
+        if not np.all(np.isfinite(ys)):
+            raise TransientError(f"solver {scene.simulation.solver} produced non-finite states near t = {ts[0]:.4g} s")
+        y = jnp.asarray(ys[-1])
+        ts_all.append(ts[1:])
+        ys_all.append(ys[1:])
+        steps += int(nst)
+        if progress:
+            done = min(ts[-1], t_end)
+            el = time.perf_counter() - wall0
+            bar = "#" * int(30 * done / t_end)
+            print(f"\r  simulate [{bar:<30}] t = {done:7.3f} / {t_end:g} s  ({el:6.1f} s)", end="", file=sys.stderr)
+    if progress:
+        print(file=sys.stderr)
+    wall = time.perf_counter() - wall0
+    t = np.concatenate(ts_all)
+    ys = np.concatenate(ys_all)
+    keep = t <= t_end + 1e-12
+    t, ys = t[keep], ys[keep]
+    chans = {k: np.asarray(v) for k, v in _outputs(jnp.asarray(t), jnp.asarray(ys), scene, inst).items()}
+    cols = _columns(scene)
+    if not cols["drive_torques_Nm"]:
+        chans.pop("drive_torques_Nm")
+        cols.pop("drive_torques_Nm")
+    else:
+        free = drive.is_free(scene)
+        chans["drive_torques_Nm"] = chans["drive_torques_Nm"][:, [i for i, f in enumerate(free) if not f]]
+    for k, v in chans.items():
+        if not np.all(np.isfinite(v)):
+            raise TransientError(f"output {k} is not finite: the run diverged")
+    meta = dict(
+        fidelity=scene.model.fidelity,
+        elements_per_span=scene.model.elements_per_span if drive.flexible(scene) else 0,
+        effects=list(scene.model.effects),
+        n_independent=drive.n_independent(scene),
+        solver=scene.simulation.solver,
+        dt_s=dt,
+        rho_inf=scene.simulation.rho_inf if fixed else None,
+        output_dt_s=out_dt,
+        t_end_s=float(t[-1]),
+        steps=steps,
+        wall_s=wall,
+        first_chunk_s=compile_s,
+        installation_tension_N=float(inst.tension),
+    )
+    return SimulationResult(t=t, channels=chans, columns=cols, meta=meta, y=ys)
