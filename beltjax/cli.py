@@ -50,6 +50,16 @@ def _elements(text):
         raise argparse.ArgumentTypeError(f"--elements must be at most 400, got {n}")
     return n
 
+def _fraction(text):
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--settle must be a number, got {text!r}") from None
+    if not 0.0 <= x < 1.0:
+        raise argparse.ArgumentTypeError(f"--settle must lie in [0, 1), got {text!r}")
+    return x
+
+
 MAX_SPEEDS = 2000  # most speeds in one Campbell sweep
 
 
@@ -347,6 +357,52 @@ def cmd_campbell(args) -> int:
     return 0
 
 
+def simulation_table(res, summary) -> str:
+    """Mean, peak-to-peak and dominant frequencies of the main channels of a simulation."""
+    m = res.meta
+    lines = [f"{m['fidelity']} model, {m['n_independent']} independent coordinates; solver {m['solver']}, "
+             f"dt {m['dt_s']:.3g} s, {m['steps']} steps; t = 0 to {m['t_end_s']:g} s; "
+             f"wall {m['wall_s']:.1f} s (first chunk with compilation {m['first_chunk_s']:.1f} s)",
+             "", f"{'channel':<34} {'mean':>10} {'peak-peak':>10}  dominant [Hz]"]
+    units = summary["units"]
+    for name in ("span_tensions_N", "span_forces_N", "hub_force_magnitudes_N", "pulley_speeds_rpm",
+                 "arm_angle_deg", "spring_moment_Nm", "drive_torques_Nm", "node_displacements_m"):
+        if name not in summary["channels"]:
+            continue
+        for col, st in summary["channels"][name].items():
+            label = f"{name.rsplit('_', 1)[0].replace('_', ' ')}: {col}" if col != name else name
+            dom = ", ".join(f"{f:.4g}" for f in st["dominant_hz"]) or "-"
+            lines.append(f"{label[:34]:<34} {st['mean']:>10.4g} {st['peak_to_peak']:>10.4g}  {dom}  [{units[name]}]")
+    return "\n".join(lines)
+
+
+def cmd_simulate(args) -> int:
+    """Transient of a drive: simulation.npz, simulation.json, time-history and spectrum plots."""
+    from beltjax import transient
+    from beltjax.plotting import plot_simulation, plot_spectra
+
+    scene = _load(args.scene)
+    out = _out_dir(args.out)
+    try:
+        res = _analysis(transient.simulate, scene, args.t_end, dt=args.dt, output_dt=args.output_dt,
+                        progress=True)
+    except transient.TransientError as exc:
+        raise InputError(str(exc)) from None
+    summary = res.summary(settle_fraction=args.settle)
+    summary["scene"] = str(args.scene)
+    res.save_npz(out / "simulation.npz")
+    (out / "simulation.json").write_text(json.dumps(summary, indent=2))
+    title = _title(scene, args.scene)
+    plot_simulation(res.t, res.channels, res.columns, transient.UNITS, out / "simulation.png", title=title)
+    plot_spectra(res.t, res.channels, res.columns, transient.UNITS, out / "spectra.png", title=title,
+                 settle_fraction=args.settle)
+    print(f"transient of {title}")
+    print(simulation_table(res, summary))
+    print(f"wrote {out / 'simulation.npz'}, {out / 'simulation.json'}, {out / 'simulation.png'} "
+          f"and {out / 'spectra.png'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="beltjax", description="Belt-drive simulation with ANCF belt spans (JAX).")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
@@ -387,6 +443,19 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--modes", type=_modes, default=20, help="lowest modes computed (default 20)")
     ca.add_argument("--out", default="out", help="output directory (default ./out)")
     ca.set_defaults(func=cmd_campbell)
+
+    si = sub.add_parser("simulate", help="transient of a drive (time histories, spectra)")
+    si.add_argument("scene", help="scene file (TOML)")
+    si.add_argument("--t-end", dest="t_end", type=_number("t-end", True, False), required=True,
+                    help="simulated time [s]")
+    si.add_argument("--dt", type=_number("dt", True, False), default=None,
+                    help="time step [s] (default: the scene's [simulation] dt_s, else 1e-4)")
+    si.add_argument("--output-dt", dest="output_dt", type=_number("output-dt", True, False), default=None,
+                    help="output interval [s] (default 5e-4 hybrid, 1e-3 rotational)")
+    si.add_argument("--settle", type=_fraction, default=0.0,
+                    help="fraction of the run left out of the summary and spectra (start-up), default 0")
+    si.add_argument("--out", default="out", help="output directory (default ./out)")
+    si.set_defaults(func=cmd_simulate)
     return p
 
 
@@ -396,7 +465,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command is None:
-            raise InputError("a command is required: span, statics, modal or campbell")
+            raise InputError("a command is required: span, statics, modal, campbell or simulate")
         _enable_compile_cache()
         return args.func(args)
     except InputError as exc:

@@ -14,7 +14,11 @@ speeds in rpm where it ends in ``_rpm``.  Tables and keys:
                 pulleys only: theta(t) = theta0 + w t + a t^2 / 2 + A sin(2 pi f t),
                 thesis eq. 4.62), cm_offset [x, y] (m, centre-of-mass offset in the
                 pulley frame, the "unbalance" effect, thesis eq. 4.5),
-                bearing_damping (N m s/rad).  All default to 0.
+                bearing_damping (N m s/rad), target_speed_rpm (driven only: the
+                run-up holds this speed once reached).  All default to 0 / none.
+                Signs: the belt runs in the route's direction; speed_rpm is its
+                drive pulley's speed along that direction (its sign is ignored),
+                acceleration > 0 speeds it up.
 ``[tensioner]`` optional; pivot [x, y] (m), arm_length (m), pulley_radius (m),
                 arm_mass (kg), arm_inertia (kg m^2, about the arm's centre of mass),
                 pulley_mass (kg), pulley_inertia (kg m^2), spring_stiffness
@@ -29,7 +33,22 @@ speeds in rpm where it ends in ``_rpm``.  Tables and keys:
 ``[model]``     fidelity ("ancf" default, or "rotational"), elements_per_span
                 (int >= 1, default 16), effects (subset of :data:`EFFECTS`,
                 default []), optional bending ("linear" default, or "exact").
+``[[torque]]``  optional loads: pulley (a free route entry), mean_Nm, amplitude_Nm,
+                frequency_hz, phase_deg, t_start_s, t_end_s: a moment (N m, CCW
+                positive) mean + amplitude sin(2 pi f t + phase) in [t_start, t_end).
+``[[span_load]]`` optional (hybrid model only): span ("<from>-<to>"), node
+                (interior, 1..N-1), amplitude_N, frequency_hz, phase_deg, t_start_s,
+                t_end_s: a harmonic force normal to the installed span.
+``[initial]``   optional transient start: rotation_deg = {pulley = deg} added to the
+                static equilibrium, arm_angle_deg (absolute).
+``[simulation]`` optional transient settings: solver (:data:`SOLVERS`), dt_s,
+                rho_inf, rtol, atol, output_dt_s, nodes (["<span>:<node>"]), max_steps.
 Top level:      optional ``description`` (string).
+
+An effect's parameter given while the effect is not in ``model.effects`` (belt.CA
+without "belt_damping", cm_offset without "unbalance", ...) is an error, never
+silently ignored.  Loads act when their tables are present; statics and modal
+analysis ignore damping and loads (they are of the undamped, unloaded drive).
 
 Every problem raises :class:`SceneError` (a ``ValueError``) with a one-line
 message that starts with the key path, e.g. ``pulley[1].radius: must be > 0,

@@ -29,6 +29,7 @@ displacement of chosen span nodes from the installed span line (m).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -42,7 +43,7 @@ import numpy as np
 
 from beltjax import drive, signals, statics
 from beltjax.integrators import GeneralizedAlpha
-from beltjax.scene import TENSIONER, Scene
+from beltjax.scene import Initial, Scene
 
 __all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt"]
 
@@ -55,6 +56,8 @@ class TransientError(ValueError):
 
 #: generalized-alpha Newton matrix kept for this many steps (refreshed at once if it fails)
 JACOBIAN_EVERY = 200
+#: most output samples of one run (memory: every channel is kept)
+MAX_OUTPUT_SAMPLES = 2_000_000
 #: Newton tolerance of the implicit steps: relative to max|y|, and absolute (units of y)
 NEWTON_RTOL, NEWTON_ATOL = 1e-9, 1e-9
 
@@ -369,6 +372,13 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     if fixed:
         out_dt = max(1, round(out_dt / dt)) * dt
     n_out = int(math.floor(t_end / out_dt + 1e-9))
+    if n_out > MAX_OUTPUT_SAMPLES:
+        raise TransientError(
+            f"t_end / output_dt gives {n_out} output samples, at most {MAX_OUTPUT_SAMPLES}: "
+            "shorten the run or raise the output interval"
+        )
+    if n_out < 1:
+        raise TransientError(f"t_end = {t_end!r} s is shorter than the output interval {out_dt:.3g} s")
     per_chunk = max(1, int(round((chunk_s or max(0.05, min(0.5, t_end / 20))) / out_dt)))
     n_chunks = -(-n_out // per_chunk)
     steps_per_chunk = int(math.ceil(per_chunk * out_dt / dt)) + 8
@@ -376,6 +386,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
 
     wall0 = time.perf_counter()
     inst, qi0, qd0 = initial_state(scene)
+    # the compiled integrator and outputs do not depend on the initial-state table
+    scene = dataclasses.replace(scene, initial=Initial())
     y = jnp.concatenate([qi0, qd0])
     ts_all, ys_all, steps = [np.zeros(1)], [np.asarray(y)[None]], 0
     compile_s = None
