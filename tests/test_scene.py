@@ -396,6 +396,81 @@ BAD = [
         "cross each other",
     ),
     ("route of one", _sub(TWO, '"crank", "alternator"]', '"crank"]'), "route.order", "at least two"),
+    # transient tables and effect switches
+    (
+        "torque on a driven pulley",
+        TWO + '[[torque]]\npulley = "crank"\nmean_Nm = 5.0\n',
+        "torque[0].pulley",
+        "not a free pulley",
+    ),
+    (
+        "torque window reversed",
+        TWO + '[[torque]]\npulley = "alternator"\nmean_Nm = 5.0\nt_start_s = 2.0\nt_end_s = 1.0\n',
+        "torque[0].t_end_s",
+        "later than t_start_s",
+    ),
+    ("torque not an array", TWO + '[torque]\npulley = "alternator"\n', "torque", "expected an array of tables"),
+    (
+        "span load on the rotational model",
+        _sub(TWO, 'fidelity = "ancf"', 'fidelity = "rotational"')
+        + '[[span_load]]\nspan = "crank-alternator"\nnode = 8\namplitude_N = 0.1\nfrequency_hz = 50.0\n',
+        "span_load[0].span",
+        "needs the hybrid model",
+    ),
+    (
+        "span load on an end node",
+        TWO + '[[span_load]]\nspan = "crank-alternator"\nnode = 16\namplitude_N = 0.1\nfrequency_hz = 50.0\n',
+        "span_load[0].node",
+        "interior node",
+    ),
+    (
+        "span load on an unknown span",
+        TWO + '[[span_load]]\nspan = "crank-idler"\nnode = 8\namplitude_N = 0.1\nfrequency_hz = 50.0\n',
+        "span_load[0].span",
+        "unknown span",
+    ),
+    (
+        "initial rotation of the driven pulley",
+        TWO + "[initial]\nrotation_deg = { crank = 2.0 }\n",
+        "initial.rotation_deg.crank",
+        "not a free pulley",
+    ),
+    ("initial arm without tensioner", TWO + "[initial]\narm_angle_deg = 40.0\n", "initial.arm_angle_deg", "no [tensioner]"),
+    ("unknown solver", TWO + '[simulation]\nsolver = "euler"\n', "simulation.solver", "must be one of"),
+    ("rho_inf out of range", TWO + "[simulation]\nrho_inf = 1.5\n", "simulation.rho_inf", "must lie in [0, 1]"),
+    ("negative step", TWO + "[simulation]\ndt_s = -1e-4\n", "simulation.dt_s", "must be > 0"),
+    ("bad output node", TWO + '[simulation]\nnodes = ["crank-alternator:40"]\n', "simulation.nodes", "is not"),
+    ("damping not switched on", _sub(TWO, "rhoA = 0.12101", "rhoA = 0.12101\nCA = 5.0"), "belt.CA", "belt_damping"),
+    (
+        "unbalance not switched on",
+        _sub(TWO, "inertia = 1.7019e-3", "inertia = 1.7019e-3\ncm_offset = [0.001, 0.0]"),
+        "pulley[1].cm_offset",
+        "unbalance",
+    ),
+    (
+        "fluctuation not switched on",
+        _sub(TWO, "speed_rpm = 0.0", "speed_rpm = 600.0\nfluctuation_amplitude_deg = 1.0\nfluctuation_frequency_hz = 20.0"),
+        "pulley[0].fluctuation_amplitude_deg",
+        "speed_fluctuation",
+    ),
+    (
+        "fluctuation without frequency",
+        _sub(TWO, "speed_rpm = 0.0", "speed_rpm = 600.0\nfluctuation_amplitude_deg = 1.0"),
+        "pulley[0].fluctuation_frequency_hz",
+        "missing",
+    ),
+    (
+        "target speed without run-up",
+        _sub(TWO, "speed_rpm = 0.0", "speed_rpm = 600.0\ntarget_speed_rpm = 2000.0"),
+        "pulley[0].target_speed_rpm",
+        "needs acceleration_rpm_per_s",
+    ),
+    (
+        "target speed behind",
+        _sub(TWO, "speed_rpm = 0.0", "speed_rpm = 600.0\nacceleration_rpm_per_s = 100.0\ntarget_speed_rpm = 300.0"),
+        "pulley[0].target_speed_rpm",
+        "cannot be reached",
+    ),
 ]
 
 
@@ -430,3 +505,23 @@ def test_missing_file(tmp_path):
     assert "\n" not in str(info.value)
     with pytest.raises(SceneError, match="directory"):
         load_scene(tmp_path)
+
+
+def test_transient_tables_parse():
+    text = (
+        _sub(TWO, "speed_rpm = 0.0", "speed_rpm = 600.0\nacceleration_rpm_per_s = 100.0\ntarget_speed_rpm = 900.0")
+        + '[[torque]]\npulley = "alternator"\nmean_Nm = -20.0\namplitude_Nm = -5.0\nfrequency_hz = 2.0\n'
+        + "t_start_s = 1.0\nt_end_s = 5.0\n"
+        + '[[span_load]]\nspan = "alternator-crank"\nnode = 8\namplitude_N = 0.02\nfrequency_hz = 52.3\n'
+        + '[initial]\nrotation_deg = { alternator = 2.0 }\n[simulation]\nsolver = "tsit5"\ndt_s = 2e-4\n'
+        + 'nodes = ["crank-alternator:4"]\n'
+    )
+    sc = loads_scene(text)
+    (tq,) = sc.torques
+    assert tq.pulley == "alternator" and float(tq.mean_Nm) == -20.0 and float(tq.t_end_s) == 5.0
+    (ld,) = sc.span_loads
+    assert ld.span == "alternator-crank" and ld.node == 8 and float(ld.frequency_hz) == 52.3
+    assert sc.initial.rotation_deg == (("alternator", 2.0),)
+    assert sc.simulation.solver == "tsit5" and sc.simulation.dt_s == 2e-4
+    assert sc.simulation.nodes == ("crank-alternator:4",)
+    assert float(sc.pulleys[0].target_speed_rpm) == 900.0
