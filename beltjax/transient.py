@@ -335,6 +335,25 @@ class SimulationResult:
         np.savez_compressed(path, **arrays)
 
 
+#: largest slide of a span end node from its tangent point, in elements (hybrid model)
+MAX_SLIDE_ELEMENTS = 0.5
+
+
+def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
+    """The hybrid model's end nodes slide by R phi from their tangent points: phi must stay a
+    perturbation of the prescribed rolling (belt_travel), or the spans leave the pulleys."""
+    slide = np.abs(np.radians(rotations_deg)) * np.asarray(inst.radii)[None, :]
+    Le = float(np.min(np.asarray(drive.element_length(scene, inst))))
+    k = np.unravel_index(np.argmax(slide), slide.shape)
+    if slide[k] > MAX_SLIDE_ELEMENTS * Le:
+        name = scene.route.order[k[1]]
+        raise TransientError(
+            f"pulley {name!r} turned {rotations_deg[k]:.3g} deg away from the belt's prescribed travel by "
+            f"t = {t[k[0]]:.4g} s (rim slide {1e3 * slide[k]:.3g} mm > half an element, {1e3 * Le / 2:.3g} mm): "
+            "in the hybrid model the drive pulley's speed_rpm / acceleration must follow the belt's motion"
+        )
+
+
 _RESULT_MESSAGES = {
     "nonlinear_max_steps_reached": "the implicit (Newton) iteration did not converge",
     "max_steps_reached": "the solver hit max_steps (simulation.max_steps)",
@@ -436,6 +455,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     for k, v in chans.items():
         if not np.all(np.isfinite(v)):
             raise TransientError(f"output {k} is not finite: the run diverged")
+    if drive.flexible(scene):
+        _check_slide(scene, inst, chans["pulley_rotations_deg"], t)
     meta = dict(
         fidelity=scene.model.fidelity,
         elements_per_span=scene.model.elements_per_span if drive.flexible(scene) else 0,
