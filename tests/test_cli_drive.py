@@ -1,4 +1,4 @@
-"""The drive commands `beltjax statics`, `modal` and `campbell`: outputs, and one-line errors.
+"""The drive commands `beltjax statics`, `modal`, `campbell` and `simulate`: outputs, and one-line errors.
 
 The full runs are subprocesses of the real command (each compiles; they share one
 persistent compile cache through BELTJAX_CACHE); the bad-input cases stop before
@@ -110,6 +110,32 @@ def test_campbell_command(tmp_path, cache):
     assert "campbell: 5/5 speeds" in proc.stderr  # progress goes to stderr
 
 
+def test_simulate_command(tmp_path, cache):
+    """Rotational model of the T = 200 N bench, alternator released from a 2 deg rotation."""
+    text = T200.read_text().replace('fidelity = "ancf"', 'fidelity = "rotational"')
+    scene = tmp_path / "release.toml"
+    scene.write_text(text + "\n[initial]\nrotation_deg = { alternator = 2.0 }\n")
+    out = tmp_path / "si"
+    proc = run_cli("simulate", scene, "--t-end", "0.25", "--dt", "2e-4", "--out", out, cache=cache)
+    data = json.loads((out / "simulation.json").read_text())
+    assert data["meta"]["solver"] == "generalized_alpha" and data["meta"]["fidelity"] == "rotational"
+    assert data["meta"]["steps"] >= 1250 and data["units"]["span_tensions_N"] == "N"
+    T = data["channels"]["span_tensions_N"]
+    assert set(T) == {"crank-alternator", "alternator-crank"}
+    for st in T.values():  # oscillates about the installation tension at the torsional mode
+        assert abs(st["mean"] - 200.0) < 5.0 and st["peak_to_peak"] > 100.0
+        assert 80.0 < st["dominant_hz"][0] < 110.0
+    npz = np.load(out / "simulation.npz")
+    assert npz["t_s"][0] == 0.0 and abs(npz["t_s"][-1] - 0.25) < 1e-9
+    assert npz["span_tensions_N"].shape == (len(npz["t_s"]), 2)
+    assert list(npz["hub_forces_N__columns"]) == ["crank", "alternator"]
+    assert np.all(np.isfinite(npz["hub_forces_N"]))
+    for png in ("simulation.png", "spectra.png"):
+        assert (out / png).stat().st_size > 10_000
+    assert "dominant" in proc.stdout and "simulation.npz" in proc.stdout
+    assert "simulate [" in proc.stderr  # the progress bar goes to stderr
+
+
 # --------------------------------------------------------------------------- bad input (no compilation)
 
 
@@ -142,6 +168,12 @@ BAD = [
     (["modal", str(T200), "--rpm", "fast"], "--rpm"),
     (["statics"], "scene"),
     (["statics", str(T200), "--speed", "3"], "--speed"),
+    (["simulate", str(T200)], "--t-end"),
+    (["simulate", str(T200), "--t-end", "0"], "--t-end"),
+    (["simulate", str(T200), "--t-end", "inf"], "--t-end"),
+    (["simulate", str(T200), "--t-end", "1", "--dt", "-1e-4"], "--dt"),
+    (["simulate", str(T200), "--t-end", "1", "--output-dt", "fast"], "--output-dt"),
+    (["simulate", str(T200), "--t-end", "1", "--settle", "1.5"], "--settle"),
 ]
 
 
@@ -157,10 +189,10 @@ def test_bad_arguments_give_one_line_naming_the_argument(argv, name, capsys, tmp
     assert not out.exists()
 
 
-@pytest.mark.parametrize("command", ["statics", "modal", "campbell"])
+@pytest.mark.parametrize("command", ["statics", "modal", "campbell", "simulate"])
 def test_missing_scene_file(command, capsys, tmp_path):
     missing = tmp_path / "no_such_scene.toml"
-    extra = ["--rpm", "0:1000:500"] if command == "campbell" else []
+    extra = {"campbell": ["--rpm", "0:1000:500"], "simulate": ["--t-end", "1"]}.get(command, [])
     code = main([command, str(missing), *extra, "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1, err
