@@ -46,7 +46,7 @@ import numpy as np
 
 from beltjax import ancf, span
 from beltjax.ancf import Section
-from beltjax.scene import TENSIONER, Scene
+from beltjax.scene import ARM, TENSIONER, Scene
 
 GRAVITY = (0.0, -9.81)  # m/s^2
 
@@ -473,7 +473,8 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     if scene.tensioner is not None and scene.model.has("tensioner_damping"):
         f = f.at[-1, 2].add(-scene.tensioner.damping * bodies_dot[-1, 2])
     for load in scene.torques:
-        f = f.at[order.index(load.pulley), 2].add(torque(load, t))
+        k = -1 if load.pulley == ARM else order.index(load.pulley)
+        f = f.at[k, 2].add(torque(load, t))
     return f
 
 

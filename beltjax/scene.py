@@ -33,7 +33,7 @@ speeds in rpm where it ends in ``_rpm``.  Tables and keys:
 ``[model]``     fidelity ("ancf" default, or "rotational"), elements_per_span
                 (int >= 1, default 16), effects (subset of :data:`EFFECTS`,
                 default []), optional bending ("linear" default, or "exact").
-``[[torque]]``  optional loads: pulley (a free route entry), mean_Nm, amplitude_Nm,
+``[[torque]]``  optional loads: pulley (a free route entry, or "tensioner_arm"), mean_Nm, amplitude_Nm,
                 frequency_hz, phase_deg, t_start_s, t_end_s: a moment (N m, CCW
                 positive) mean + amplitude sin(2 pi f t + phase) in [t_start, t_end).
 ``[[span_load]]`` optional (hybrid model only): span ("<from>-<to>"), node
@@ -90,6 +90,7 @@ FIDELITIES = ("ancf", "rotational")
 SOLVERS = ("generalized_alpha", "tsit5", "dopri8", "kvaerno5")
 DIRECTIONS = geometry.DIRECTIONS
 TENSIONER = "tensioner"  # the idler's name in route.order (reserved)
+ARM = "tensioner_arm"  # a [[torque]] on the tensioner's arm (about its pivot)
 
 
 class SceneError(ValueError):
@@ -616,6 +617,8 @@ def _window(t, key):
 
 
 def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
+    if TENSIONER in free_names:
+        free_names = [*free_names, ARM]
     if not isinstance(data, list):
         _fail("torque", f"expected an array of tables [[torque]], got {_describe(data)}", source)
     out = []
