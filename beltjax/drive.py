@@ -210,36 +210,28 @@ def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
 
 def belt_travel(scene: Scene, t):
     """Nominal belt travel x_b(t) (m) along the route, set by the drive pulley's prescribed
-    mean motion: speed |speed_rpm|, run-up at acceleration_rpm_per_s up to target_speed_rpm.
+    motion: speed |speed_rpm|, run-up at acceleration_rpm_per_s up to target_speed_rpm, and
+    (``speed_fluctuation``) the harmonic fluctuation R A sin(2 pi f t) of its angle.
 
-    Its first and second time derivatives (m/s, m/s^2) are the belt speed and acceleration
-    (by autodiff).  The speed fluctuation is not part of it (see :func:`driven_perturbation`).
+    Every pulley rolls with it (angle s_i x_b / R_i) and the belt's transport speed is its
+    rate, so the fluctuation reaches the centrifugal and rhoA dc/dt terms as in the thesis
+    (c = R theta').  Its first and second time derivatives (m/s, m/s^2) come by autodiff.
     """
     p = scene.pulley(scene.route.order[drive_pulley(scene)])
     rpm = 2 * jnp.pi / 60.0
     w0 = jnp.abs(p.speed_rpm) * rpm
     a = p.acceleration_rpm_per_s * rpm
     if p.target_speed_rpm is None:
-        return p.radius * (w0 * t + 0.5 * a * t**2)
-    wT = p.target_speed_rpm * rpm
-    t_star = (wT - w0) / jnp.where(a == 0.0, 1.0, a)
-    tau = jnp.minimum(t, t_star)
-    return p.radius * (w0 * tau + 0.5 * a * tau**2 + wT * (t - tau))
-
-
-def driven_perturbation(scene: Scene, t):
-    """Prescribed rotation perturbation of each route entry (rad, CCW), shape (n,): the drive
-    pulley's harmonic speed fluctuation A sin(2 pi f t) along its running sense when the
-    ``speed_fluctuation`` effect is on; zero elsewhere."""
-    n = len(scene.route.order)
-    out = jnp.zeros(n)
+        angle = w0 * t + 0.5 * a * t**2
+    else:
+        wT = p.target_speed_rpm * rpm
+        t_star = (wT - w0) / jnp.where(a == 0.0, 1.0, a)
+        tau = jnp.minimum(t, t_star)
+        angle = w0 * tau + 0.5 * a * tau**2 + wT * (t - tau)
     if scene.model.has("speed_fluctuation"):
-        k = drive_pulley(scene)
-        p = scene.pulley(scene.route.order[k])
-        sense = float(scene.route.senses[k])
         A = jnp.deg2rad(p.fluctuation_amplitude_deg)
-        out = out.at[k].set(sense * A * jnp.sin(2 * jnp.pi * p.fluctuation_frequency_hz * t))
-    return out
+        angle = angle + A * jnp.sin(2 * jnp.pi * p.fluctuation_frequency_hz * t)
+    return p.radius * angle
 
 
 def n_reaction_points(scene: Scene) -> int:
@@ -253,19 +245,18 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     qi: independent coordinates (m, rad, -); driven_angle: prescribed rotation
     perturbation of driven pulleys (rad, scalar or (n,) route order); t: time (s), for
     transients: each pulley then also turns by its nominal rolling angle
-    s_i x_b(t) / R_i (:func:`belt_travel`) and the drive pulley's fluctuation is added;
-    None (statics, modes) leaves both out.  shift: virtual displacement (m) of every
+    s_i x_b(t) / R_i (:func:`belt_travel`, speed fluctuation included); None (statics,
+    modes) leaves it out.  shift: virtual displacement (m) of every
     bearing, shape (n_reaction_points, 2) (route entries, then the arm pivot), used to
     compute bearing reactions; None = 0.  Returns the full vector: span coordinates
     (n spans x 4 (N+1)), then (x, y, angle) per body (m, rad); with ``unbalance`` the
-    (x, y) of a pulley is its centre of mass, offset by cm_offset turning with it.
+    (x, y) of a pulley is the centre of mass of the pulley (offset by cm_offset, turning
+    with it) and of its wrapped belt (on the axis).
     """
     order = scene.route.order
     n = len(order)
     N = span_elements(scene)
     _, spans = _split(qi, scene)
-    if t is not None:
-        driven_angle = driven_angle + driven_perturbation(scene, t)
     phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
     if scene.tensioner is not None:
         tt = scene.tensioner
@@ -297,10 +288,13 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     angle = phi if t is None else phi + senses * belt_travel(scene, t) / inst.radii
     unbalance = scene.model.has("unbalance")
     bodies = []
+    if unbalance:  # the body (x, y) is the centre of mass of pulley + wrapped belt
+        m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
     for i in range(n):
         pos = centers[i]
         if unbalance and order[i] != TENSIONER:
-            e = scene.pulley(order[i]).cm_offset
+            p = scene.pulley(order[i])
+            e = p.cm_offset * p.mass / (p.mass + m_arc[i])
             c, sn = jnp.cos(angle[i]), jnp.sin(angle[i])
             pos = pos + jnp.stack([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
         bodies.append(jnp.concatenate([pos, angle[i][None]]))

@@ -22,7 +22,7 @@ Outputs, at every ``output_dt_s`` (s): span tensions (elastic, N) and span
 forces on the pulleys (tension minus rhoA c^2 lam with ``transport``, N), bearing
 forces (the force each pulley, and the tensioner arm at its pivot, puts on its
 bearing, N: belt forces, weight and the body's inertia), pulley speeds (rpm) and
-rotation perturbations (deg), arm angle (deg), spring moment (N m), the torque
+rotations from their rolling with the belt (deg), arm angle (deg), spring moment (N m), the torque
 that holds each driven pulley on its prescribed motion (N m), and the normal
 displacement of chosen span nodes from the installed span line (m).
 """
@@ -43,7 +43,7 @@ import numpy as np
 
 from beltjax import drive, signals, statics
 from beltjax.integrators import GeneralizedAlpha
-from beltjax.scene import Initial, Scene
+from beltjax.scene import Initial, Scene, Simulation
 
 __all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt"]
 
@@ -126,7 +126,9 @@ def initial_state(scene: Scene):
     """(installation, q_i(0), q_i'(0)): the static equilibrium at the initial belt speed with
     the ``[initial]`` changes (added pulley rotations, arm angle); spans straight between
     their moved ends.  Raises StaticsError (one line) when the drive has no equilibrium."""
-    st = statics.analyse_statics(scene, speed=float(drive.belt_speed(scene)))
+    # statics needs none of the transient tables: strip them so that it compiles once per drive
+    bare = dataclasses.replace(scene, initial=Initial(), simulation=Simulation(), torques=(), span_loads=())
+    st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)))
     inst, qi0 = st.inst, jnp.asarray(st.qi)
     ini = scene.initial
     if ini.rotation_deg or ini.arm_angle_deg is not None:
@@ -234,7 +236,7 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     forces = tensions
     if scene.model.has("transport"):
         forces = tensions - scene.belt.rhoA * c**2 * lam
-    phis, theta = drive.angles_and_arm(qi, scene, inst, driven_angle=drive.driven_perturbation(scene, t))
+    phis, theta = drive.angles_and_arm(qi, scene, inst)
     out = dict(
         span_tensions_N=tensions,
         span_forces_N=forces,
