@@ -457,6 +457,8 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
         f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
     if scene.model.has("gravity"):
         f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
+        if inst is not None and flexible(scene):
+            f = f.at[: len(scene.route.order), 2].add(_belt_weight_slide_moments(scene, inst))
     if t is None:
         return f
     order = scene.route.order
@@ -470,6 +472,25 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
         k = -1 if load.pulley == ARM else order.index(load.pulley)
         f = f.at[k, 2].add(torque(load, t))
     return f
+
+
+def _belt_weight_slide_moments(scene: Scene, inst: Installation):
+    """Moments (N m) on the pulleys that make a rigid turn of the belt loop cost no weight.
+
+    A pulley's rotation perturbation slides the span end nodes along their spans (s R phi);
+    the belt itself flows through the spans, so sliding a span along its own line must not
+    move its weight.  The span's weight is counted with its nodes shifted back by the
+    interpolated end slides, (1 - x) s0 + x s1 along the span: that adds the potential
+    rhoA (g . t) L0 (s0 + s1) / 2 per span, i.e. these constant moments (a pure moment: the
+    bearing forces are unchanged).
+    """
+    n = len(scene.route.order)
+    g = jnp.asarray(GRAVITY)
+    L0 = element_length(scene, inst) * scene.model.elements_per_span
+    senses = jnp.asarray(scene.route.senses, dtype=L0.dtype)
+    w = scene.belt.rhoA * (inst.span_tangent @ g) * L0 / 2  # per span, N
+    prev = (np.arange(n) - 1) % n
+    return -(w + w[prev]) * senses * inst.radii
 
 
 def _window(t, t_start, t_end):
