@@ -38,6 +38,7 @@ from typing import ClassVar
 
 import diffrax
 import equinox as eqx
+import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
@@ -79,8 +80,8 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
     * ``rho_inf``: spectral radius at infinity, in [0, 1] (1.0 = no numerical
       dissipation, the implicit midpoint rule).
     * ``newton_iterations``: maximum Newton iterations per step (a fixed trip
-      count, a ``fori_loop`` over a ``cond`` that skips the iterations after
-      convergence, so the step is reverse-mode differentiable).
+      count: a bounded, checkpointed while loop that stops at convergence, so the step is
+      reverse-mode differentiable).
     * ``full_newton``: True (default) re-evaluates the Jacobian at every
       iteration; False evaluates it once per step, at the predictor
       (simplified Newton: cheaper iterations, slower convergence; it can
@@ -243,14 +244,18 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
             finite = jnp.all(jnp.isfinite(a_new))
             return a_new, finite & (eta * size <= tol), finite, factors, size
 
-        def body(_, carry):
+        def go_on(carry):
             converged, finite = carry[1], carry[2]
-            # converged or failed iterations are skipped (a cond, not a select)
-            return jax.lax.cond(converged | ~finite, lambda c: c, newton_update, carry)
+            return ~converged & finite
 
         def newton(factors):
             init = (a0, jnp.array(False), jnp.array(True), factors, jnp.array(jnp.inf, dtype=a0.dtype))
-            a, converged, finite, _, _ = jax.lax.fori_loop(0, int(self.newton_iterations), body, init)
+            # a bounded while loop: stops at convergence (or failure), at most newton_iterations
+            # trips, and stays reverse-mode differentiable (checkpointed); a fori_loop over a
+            # cond did the same work about 4x slower on CPU
+            a, converged, finite, _, _ = eqxi.while_loop(
+                go_on, newton_update, init, max_steps=int(self.newton_iterations), kind="checkpointed"
+            )
             return a, converged, finite
 
         if self.full_newton:
