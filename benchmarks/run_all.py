@@ -56,9 +56,12 @@ def main(argv: list[str]) -> int:
 
 
 def write_summary(results: Path) -> None:
-    """Collect the headline figures of every results/bench_*.json into benchmarks/summary.json."""
+    """Collect the headline figures of every results/bench_*.json (and results/transient.json) into
+    benchmarks/summary.json."""
     headline = {}
-    for f in sorted(results.glob("bench_*.json")):
+    files = sorted(results.glob("bench_*.json"))
+    files += [f for f in (results / "transient.json",) if f.exists()]  # written by bench_transient.py
+    for f in files:
         data = json.loads(f.read_text())
         headline[f.stem] = {"machine": data.get("machine"), "summary": data.get("summary")}
     (HERE / "summary.json").write_text(json.dumps(headline, indent=2) + "\n")
