@@ -51,10 +51,7 @@ def _elements(text):
     return n
 
 def _fraction(text):
-    try:
-        x = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--settle must be a number, got {text!r}") from None
+    x = _number("settle")(text)
     if not 0.0 <= x < 1.0:
         raise argparse.ArgumentTypeError(f"--settle must lie in [0, 1), got {text!r}")
     return x

@@ -86,9 +86,7 @@ def canonical(scene: Scene) -> Scene:
 
 def span_names(scene: Scene) -> list[str]:
     """Names of the spans in route order: "<from>-<to>" (span i leaves route entry i)."""
-    order = scene.route.order
-    n = len(order)
-    return [f"{order[i]}-{order[(i + 1) % n]}" for i in range(n)]
+    return scene.route.span_names
 
 
 def is_free(scene: Scene) -> list[bool]:
@@ -546,6 +544,31 @@ def transport_speed(scene: Scene, inst: Installation, speed):
     return speed / inst.stretch
 
 
+def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None):
+    """Full coordinates and what the reduced equations need of them, at (q_i, q_i', t).
+
+    Returns (q, v, gamma, J, F): q = Phi(q_i, t) and its rate v; gamma = d(J q_i')/dt at
+    q_i'' = 0 (with the time terms of Phi); J = dPhi/dq_i; the forces F of
+    :func:`full_forces`.  speed: belt speed (m/s) when ``t`` is None (steady motion, the
+    map without time); with a time t (s) the belt speed and its rate follow
+    :func:`belt_travel` and the damping effects and loads act.
+    """
+    steady = t is None
+    t = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
+    one = jnp.zeros_like(t) if steady else jnp.ones_like(t)  # the time's tangent
+    phi = lambda x, tt: full_coordinates(x, scene, inst, t=None if steady else tt)  # noqa: E731
+    rate = lambda x, tt: jax.jvp(phi, (x, tt), (qi_dot, one))[1]  # noqa: E731
+    q, v = jax.jvp(phi, (qi, t), (qi_dot, one))
+    _, gamma = jax.jvp(rate, (qi, t), (qi_dot, one))
+    J = jax.jacfwd(phi)(qi, t)
+    if steady:
+        F = full_forces(q, v, scene, inst, transport_speed(scene, inst, speed))
+    else:
+        _, xd, xdd = _travel_rates(scene, t)
+        F = full_forces(q, v, scene, inst, xd / inst.stretch, xdd / inst.stretch, t=t)
+    return q, v, gamma, J, F
+
+
 def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_full=None, t=None):
     """Reduced mass matrix and forces: ``M_ii = J^T M J``, ``F_ii = J^T (F - M gamma)``.
 
@@ -555,24 +578,7 @@ def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_fu
     act.  Returns (M_ii, F_ii) in kg / kg m^2 and N / N m.
     """
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
-    if t is None:
-        phi = lambda x: full_coordinates(x, scene, inst)  # noqa: E731
-        q, v = jax.jvp(phi, (qi,), (qi_dot,))
-        J = jax.jacfwd(phi)(qi)
-        _, gamma = jax.jvp(lambda x: jax.jvp(phi, (x,), (qi_dot,))[1], (qi,), (qi_dot,))
-        c = transport_speed(scene, inst, speed)
-        F = full_forces(q, v, scene, inst, c)
-        return J.T @ M @ J, J.T @ (F - M @ gamma)
-    t = jnp.asarray(t, dtype=qi.dtype)
-    one = jnp.ones_like(t)
-    phi_t = lambda x, tt: full_coordinates(x, scene, inst, t=tt)  # noqa: E731
-    rate = lambda x, tt: jax.jvp(phi_t, (x, tt), (qi_dot, one))[1]  # noqa: E731
-    q, v = jax.jvp(phi_t, (qi, t), (qi_dot, one))
-    _, gamma = jax.jvp(rate, (qi, t), (qi_dot, one))
-    J = jax.jacfwd(phi_t)(qi, t)
-    x, xd, xdd = _travel_rates(scene, t)
-    c, c_dot = xd / inst.stretch, xdd / inst.stretch
-    F = full_forces(q, v, scene, inst, c, c_dot, t=t)
+    _, _, gamma, J, F = full_motion(qi, qi_dot, scene, inst, speed, t)
     return J.T @ M @ J, J.T @ (F - M @ gamma)
 
 

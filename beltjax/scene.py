@@ -179,6 +179,12 @@ class Route(eqx.Module):
     direction: str = eqx.field(static=True)
 
     @property
+    def span_names(self) -> list[str]:
+        """Names of the spans in route order: "<from>-<to>" (span i leaves entry i)."""
+        n = len(self.order)
+        return [f"{self.order[i]}-{self.order[(i + 1) % n]}" for i in range(n)]
+
+    @property
     def senses(self) -> np.ndarray:
         """Wrap sense per route entry: +1 CCW, -1 CW (numpy ints)."""
         return geometry.wrap_senses(self.order, self.back_side, self.direction)
@@ -608,7 +614,7 @@ def _parse_model(data, source) -> Model:
     return Model(fidelity=fidelity, elements_per_span=n, effects=tuple(effects), bending=bending)
 
 
-def _window(t, key):
+def _window(t):
     t0 = t.number("t_start_s", required=False, default=0.0, nonnegative=True)
     t1 = t.number("t_end_s", required=False)
     if t1 is not None and t1 <= t0:
@@ -631,7 +637,7 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
                 f"{name!r} is not a free pulley of the route (free: {', '.join(free_names) or 'none'}; "
                 "a driven pulley's motion is prescribed)",
             )
-        t0, t1 = _window(t, "torque")
+        t0, t1 = _window(t)
         out.append(
             Torque(
                 pulley=name,
@@ -661,7 +667,7 @@ def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLo
         node = t.integer("node")
         if not 1 <= node <= n_elements - 1:
             t.fail("node", f"must be an interior node, 1 to {n_elements - 1} (elements_per_span - 1), got {node!r}")
-        t0, t1 = _window(t, "span_load")
+        t0, t1 = _window(t)
         out.append(
             SpanLoad(
                 span=name,
@@ -723,7 +729,7 @@ def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
                       nodes=nodes, max_steps=max_steps)
 
 
-def _check_effects(data, scene: Scene, source: str):
+def _check_effects(scene: Scene, source: str):
     """A parameter of an effect that is not switched on is an error, not silently ignored."""
     model = scene.model
     if float(scene.belt.CA) > 0 and not model.has("belt_damping"):
@@ -823,7 +829,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
     route = _parse_route(data["route"], [p.name for p in pulleys], tensioner is not None, source)
     model = _parse_model(data.get("model", {}), source)
     order = route.order
-    spans = [f"{order[i]}-{order[(i + 1) % len(order)]}" for i in range(len(order))]
+    spans = route.span_names
     free_names = [n for n in order if n == TENSIONER or not next(p for p in pulleys if p.name == n).driven]
     N = model.elements_per_span
     torques = _parse_torques(data["torque"], free_names, source) if "torque" in data else ()
@@ -845,7 +851,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         initial=initial,
         simulation=simulation,
     )
-    _check_effects(data, scene, source)
+    _check_effects(scene, source)
     g = _check_geometry(scene, source)
     if g is not None and tensioner is None and belt.length is not None:
         path = float(g.length)
