@@ -1,0 +1,127 @@
+"""Scene parameters addressed by name: one mechanism for sweeps, fits and layout optimisation.
+
+A parameter path names one scalar leaf of a :class:`beltjax.scene.Scene` with the keys of the
+scene file::
+
+    belt.EA  belt.EI  belt.rhoA  belt.CA  belt.static_tension  belt.length
+    pulley.<name>.center.x  pulley.<name>.center.y  pulley.<name>.radius  pulley.<name>.mass
+    pulley.<name>.inertia  pulley.<name>.speed_rpm  pulley.<name>.bearing_damping ...
+    tensioner.pivot.x  tensioner.pivot.y  tensioner.arm_length  tensioner.spring_stiffness
+    tensioner.spring_preload_deg  tensioner.damping ...
+
+Units are those of the scene file (SI; ``_deg`` degrees, ``_rpm`` rpm).  :func:`set_value`
+returns a new scene (pure, so it runs under ``jit``, ``vmap`` and ``grad``: gradients reach
+any parameter).  The belt is given by exactly one of ``static_tension`` and ``length``;
+setting the other one switches the scene to it (the installation then solves for the first).
+A path that names nothing is a :class:`ParameterError` naming the path and the choices.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from beltjax.scene import Scene
+
+_COMPONENTS = {"x": 0, "y": 1}
+_VECTORS = {"pulley": ("center", "cm_offset"), "tensioner": ("pivot",)}
+_BELT = ("EA", "EI", "rhoA", "CA", "static_tension", "length")
+_PULLEY = ("radius", "mass", "inertia", "speed_rpm", "acceleration_rpm_per_s",
+           "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "bearing_damping")
+_TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_mass",
+              "pulley_inertia", "spring_stiffness", "spring_preload_deg", "arm_cm_distance", "damping")
+
+
+class ParameterError(ValueError):
+    """A parameter path that names no scalar of the scene (one line)."""
+
+    def __init__(self, path: str, message: str):
+        super().__init__(f"{path}: {message}")
+        self.path = path
+
+
+def paths(scene: Scene) -> list[str]:
+    """Every scalar parameter path of ``scene`` (see the module docstring)."""
+    out = [f"belt.{k}" for k in _BELT]
+    for p in scene.pulleys:
+        out += [f"pulley.{p.name}.{v}.{c}" for v in _VECTORS["pulley"] for c in _COMPONENTS]
+        out += [f"pulley.{p.name}.{k}" for k in _PULLEY]
+    if scene.tensioner is not None:
+        out += [f"tensioner.pivot.{c}" for c in _COMPONENTS]
+        out += [f"tensioner.{k}" for k in _TENSIONER]
+    return out
+
+
+def _resolve(scene: Scene, path: str):
+    """(getter of the owning array leaf, component index or None, field) for ``path``."""
+    if not isinstance(path, str) or not path:
+        raise ParameterError(str(path), "a parameter path is a non-empty string such as 'belt.EI'")
+    parts = path.split(".")
+    head = parts[0]
+    if head == "belt":
+        if len(parts) != 2 or parts[1] not in _BELT:
+            raise ParameterError(path, f"belt parameters are {', '.join('belt.' + k for k in _BELT)}")
+        return (lambda s: s.belt), None, parts[1]
+    if head == "pulley":
+        names = [p.name for p in scene.pulleys]
+        if len(parts) < 3 or parts[1] not in names:
+            raise ParameterError(path, f"write pulley.<name>.<key> with a pulley of the scene ({', '.join(names)})")
+        i = names.index(parts[1])
+        rest, owner, vectors, scalars = parts[2:], (lambda s: s.pulleys[i]), _VECTORS["pulley"], _PULLEY
+    elif head == "tensioner":
+        if scene.tensioner is None:
+            raise ParameterError(path, "the scene has no tensioner")
+        rest, owner, vectors, scalars = parts[1:], (lambda s: s.tensioner), _VECTORS["tensioner"], _TENSIONER
+    else:
+        raise ParameterError(path, "a parameter path starts with belt., pulley.<name>. or tensioner.")
+    if len(rest) == 2 and rest[0] in vectors and rest[1] in _COMPONENTS:
+        return owner, _COMPONENTS[rest[1]], rest[0]
+    if len(rest) == 1 and rest[0] in scalars:
+        return owner, None, rest[0]
+    keys = [f"{v}.{c}" for v in vectors for c in _COMPONENTS] + list(scalars)
+    raise ParameterError(path, f"unknown key {'.'.join(rest)!r}; choose one of {', '.join(keys)}")
+
+
+def check(scene: Scene, path: str) -> str:
+    """``path`` if it names a scalar of ``scene`` (else :class:`ParameterError`)."""
+    owner, _, name = _resolve(scene, path)
+    if owner(scene) is None:
+        raise ParameterError(path, "the scene has no such part")
+    return path
+
+
+def get_value(scene: Scene, path: str):
+    """The scalar at ``path`` (file units).  The belt parameter that the scene does not give
+    (``length`` or ``static_tension``) is NaN here: it is solved by the installation."""
+    owner, comp, name = _resolve(scene, path)
+    x = getattr(owner(scene), name)
+    if x is None:
+        return jnp.asarray(jnp.nan)
+    x = jnp.asarray(x)
+    return x[comp] if comp is not None else x
+
+
+def set_value(scene: Scene, path: str, value) -> Scene:
+    """A copy of ``scene`` with the scalar at ``path`` set to ``value`` (file units; traceable)."""
+    owner, comp, name = _resolve(scene, path)
+    value = jnp.asarray(value, dtype=jnp.float64)
+    if name in ("static_tension", "length"):
+        other = "length" if name == "static_tension" else "static_tension"
+        belt = scene.belt
+        fields = {k: getattr(belt, k) for k in ("EA", "EI", "rhoA", "static_tension", "length", "CA")}
+        fields[name], fields[other] = value, None
+        return eqx.tree_at(lambda s: s.belt, scene, type(belt)(**fields))
+    leaf = getattr(owner(scene), name)
+    if leaf is None:
+        raise ParameterError(path, "this parameter is not set in the scene (give it in the scene file first)")
+    new = jnp.asarray(leaf, dtype=jnp.float64).at[comp].set(value) if comp is not None else value
+    return eqx.tree_at(lambda s: getattr(owner(s), name), scene, new)
+
+
+def set_values(scene: Scene, values: Mapping[str, object]) -> Scene:
+    """``scene`` with several parameters set: {path: value} (file units; traceable)."""
+    for path, value in values.items():
+        scene = set_value(scene, path, value)
+    return scene
