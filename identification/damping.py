@@ -1,0 +1,548 @@
+"""Damping from impulse responses: modal frequencies and damping ratios of a decaying record.
+
+A hammer blow (or a release) leaves a free decay, a sum of exponentially decaying sinusoids
+
+    y(t) = c + sum_m exp(-sigma_m tau) (a_m cos(omega_m tau) + b_m sin(omega_m tau)),  tau = t - t_0,
+
+with, per mode, the natural frequency ``f_n = sqrt(sigma^2 + omega^2) / (2 pi)`` (Hz, what a modal
+analysis gives; the damped frequency ``omega / (2 pi)`` is reported too) and the damping ratio
+``zeta = sigma / (2 pi f_n)``.  The fit:
+
+1. an initial estimate by the matrix-pencil method (Hua & Sarkar 1990) on at most 1000 samples
+   (box-car averaged and decimated when the record is longer: an FIR filter keeps the poles), of
+   a model order above ``2 modes + 1`` so that noise has poles of its own; the ``modes``
+   oscillating poles with the most energy are kept;
+2. a Levenberg–Marquardt polish of all parameters (decays, frequencies, amplitudes, offset) on
+   the whole record, with the Jacobian by ``jax.jacfwd`` (one jitted residual-and-Jacobian
+   function per record shape);
+3. standard errors (1 sigma) from the Gauss–Newton covariance ``s^2 (J^T J)^-1``, inflated by
+   ``sqrt((1 + rho) / (1 - rho))`` for a positive lag-one autocorrelation rho of the residuals
+   (AR(1) effective sample size), carried to f_n and zeta by the delta method.
+
+Dataset section (paths relative to the dataset file)::
+
+    [[impulse.record]]
+    file = "hammer.csv"   # columns: time_s, response (any unit), uniformly sampled
+    modes = 2             # number of decaying modes to fit (default 1)
+    # name = "arm"        # label (default: the file name's stem)
+    # t_start_s = 0.0     # fit from here on (skip the hammer contact)
+    # t_end_s = 1.0       # fit up to here (default: the end of the record)
+    # offset = true       # fit a constant offset c (default true; false: the response decays to 0)
+
+A single record may also be given as ``[impulse]`` with ``file = ...`` directly.
+
+Every problem raises :class:`identification.data.DataError` with a one-line message naming the
+key or file: missing columns, an empty file, too few points, a time column that does not
+increase or is not uniformly sampled, a constant response, fewer oscillating components than
+``modes`` (no oscillation: a frequency and damping ratio are not identifiable), a mode that does
+not decay measurably over the record (zeta within 3 standard errors of 0, or growing: damping
+not identifiable), a mode whose amplitude is at the noise level.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass, field
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import beltjax  # noqa: F401  (float64 in jax before any array is made)
+from identification.data import DataError, number, read_csv
+
+__all__ = [
+    "ImpulseFit", "RecordFit", "fit_impulse", "fit_record", "decay_model", "matrix_pencil", "amplitude_spectrum",
+    "RECORD_KEYS",
+]
+
+#: keys of one [[impulse.record]] table
+RECORD_KEYS = ("file", "modes", "name", "t_start_s", "t_end_s", "offset")
+#: most modes one record may ask for
+MAX_MODES = 8
+#: fewest samples in the fitted window, and per fitted parameter
+MIN_POINTS, POINTS_PER_PARAMETER = 20, 5
+#: largest relative deviation of a time step from the record's mean step
+UNIFORM_RTOL = 0.01
+#: samples the matrix pencil works on (decimated above this)
+PENCIL_SAMPLES = 1000
+#: extra pencil poles per mode for the noise
+EXTRA_ORDER = 2
+#: a mode must show at least this many cycles in the fitted window
+MIN_CYCLES = 1.0
+#: significance (in standard errors) of a mode's amplitude and of its decay
+SIGNIFICANCE = 3.0
+#: Levenberg-Marquardt: most iterations, and the relative cost decrease left (Gauss-Newton) that ends it
+LM_ITERATIONS, LM_RTOL = 200, 1e-13
+
+
+# --------------------------------------------------------------------------- pure functions
+
+
+def decay_model(p: jax.Array, tau: jax.Array, modes: int, offset: bool) -> jax.Array:
+    """Sum of decaying sinusoids at times ``tau`` (s from the window's start).
+
+    p = [c (if offset), sigma_1..m (1/s), omega_1..m (rad/s), a_1..m, b_1..m] (response units).
+    """
+    c = p[0] if offset else 0.0
+    q = p[1:] if offset else p
+    sig, om, a, b = q[:modes], q[modes : 2 * modes], q[2 * modes : 3 * modes], q[3 * modes :]
+    env = jnp.exp(-tau[:, None] * sig[None, :])
+    ph = tau[:, None] * om[None, :]
+    return c + jnp.sum(env * (a * jnp.cos(ph) + b * jnp.sin(ph)), axis=1)
+
+
+@partial(jax.jit, static_argnames=("modes", "offset"))
+def _residual_jacobian(p, tau, y, modes: int, offset: bool):
+    r = lambda x: decay_model(x, tau, modes, offset) - y  # noqa: E731
+    return r(p), jax.jacfwd(r)(p)
+
+
+def amplitude_spectrum(y: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided amplitude spectrum (Hann window, mean removed): (frequencies Hz, amplitude in y's unit)."""
+    y = np.asarray(y, dtype=float)
+    w = np.hanning(y.size)
+    Y = np.fft.rfft((y - y.mean()) * w)
+    return np.fft.rfftfreq(y.size, dt), 2.0 * np.abs(Y) / np.sum(w)
+
+
+def matrix_pencil(y: np.ndarray, order: int) -> np.ndarray:
+    """Discrete poles z_k (complex, ``order`` of them) of uniformly sampled y, by the matrix pencil."""
+    n = y.size
+    L = max(order + 1, n // 3)
+    H = np.lib.stride_tricks.sliding_window_view(y, L + 1)  # (n - L, L + 1) Hankel
+    _, _, Vh = np.linalg.svd(H, full_matrices=False)
+    V = Vh[:order].conj().T
+    return np.linalg.eigvals(np.linalg.pinv(V[:-1]) @ V[1:])
+
+
+def _linear_amplitudes(tau, y, sig, om, offset: bool):
+    """Least-squares offset and cos/sin amplitudes for given decays and frequencies."""
+    env = np.exp(-np.outer(tau, sig))
+    ph = np.outer(tau, om)
+    cols = ([np.ones_like(tau)[:, None]] if offset else []) + [env * np.cos(ph), env * np.sin(ph)]
+    X = np.concatenate(cols, axis=1)
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    return coef
+
+
+def _pencil_guess(tau: np.ndarray, y: np.ndarray, dt: float, modes: int, offset: bool):
+    """(sigma, omega) of the ``modes`` oscillating pencil poles with the most energy (units of tau);
+    the number of oscillating poles found (an int, None for none) when fewer than ``modes``."""
+    n = y.size
+    q = max(1, math.ceil(n / PENCIL_SAMPLES))
+    if q > 1:  # box-car average then decimate: the poles stay, noise and aliases fall
+        yf = np.convolve(y, np.ones(q) / q, mode="valid")[::q][:PENCIL_SAMPLES]
+    else:
+        yf = y
+    dtp = q * dt
+    order = min(2 * modes + (1 if offset else 0) + 2 * EXTRA_ORDER * modes, yf.size // 3 - 1)
+    z = matrix_pencil(yf - (yf.mean() if offset else 0.0), order)
+    z = z[np.abs(z) > 1e-12]
+    s = np.log(z.astype(complex)) / dtp
+    n_win = yf.size
+    # oscillating (half a cycle in the window, below Nyquist), not a noise pole growing 1000-fold
+    osc = (s.imag > np.pi * MIN_CYCLES / (n_win * dtp)) & (s.imag < np.pi / dtp * 0.999)
+    osc &= s.real * n_win * dtp < math.log(1e3)
+    if not np.any(osc):
+        return None
+    # energy of every pole's component from a joint least-squares fit of all of them
+    k = np.arange(n_win)
+    Z = np.exp(np.outer(k * dtp, s))
+    Z = np.concatenate([np.ones((n_win, 1)), Z], axis=1) if offset else Z
+    h, *_ = np.linalg.lstsq(Z, yf.astype(complex), rcond=None)
+    h = h[1:] if offset else h
+    energy = np.abs(h) ** 2 * np.sum(np.abs(Z[:, -s.size :]) ** 2, axis=0)
+    cand = np.flatnonzero(osc)
+    cand = cand[np.argsort(-energy[cand])][:modes]
+    if cand.size < modes:
+        return cand.size
+    return -s.real[cand], s.imag[cand]
+
+
+def _levenberg_marquardt(p, tau, y, modes: int, offset: bool):
+    """Minimise |r(p)|^2 (Marquardt's diagonal scaling); returns (p, r, J).
+
+    Stops when the undamped Gauss-Newton step would lower the cost by less than LM_RTOL of it
+    (a curvature-scaled gradient test: a heavily damped step that gains little does not stop it).
+    """
+    tau_j, y_j = jnp.asarray(tau), jnp.asarray(y)
+    r, J = (np.asarray(a) for a in _residual_jacobian(jnp.asarray(p), tau_j, y_j, modes, offset))
+    cost, lam = float(r @ r), 1e-3
+    for _ in range(LM_ITERATIONS):
+        A, g = J.T @ J, J.T @ r
+        D = np.diag(A).copy()
+        D[D <= 0] = 1.0
+        gn = np.linalg.lstsq(J / np.sqrt(D), -r, rcond=None)[0] / np.sqrt(D)
+        if -float(g @ gn) <= LM_RTOL * cost:
+            break
+        try:
+            step = -np.linalg.solve(A + lam * np.diag(D), g)
+        except np.linalg.LinAlgError:
+            lam *= 10
+            continue
+        p_new = p + step
+        r_new, J_new = (np.asarray(a) for a in _residual_jacobian(jnp.asarray(p_new), tau_j, y_j, modes, offset))
+        c_new = float(r_new @ r_new)
+        if np.isfinite(c_new) and c_new <= cost:
+            p, r, J, cost = p_new, r_new, J_new, c_new
+            lam = max(lam / 3, 1e-12)
+        else:
+            lam *= 4
+            if lam > 1e12:
+                break
+    return p, r, J
+
+
+# --------------------------------------------------------------------------- results
+
+
+@dataclass
+class RecordFit:
+    """Fit of one record.  Per mode (ascending f_n): natural and damped frequencies (Hz),
+    damping ratios, their 1-sigma standard errors, amplitudes at the window's start (response
+    units).  The arrays t, y, fitted are the window as fitted, for plots."""
+
+    name: str
+    file: str
+    modes: int
+    n_points: int
+    t_window_s: tuple[float, float]
+    sample_rate_hz: float
+    frequencies_hz: np.ndarray
+    frequencies_se_hz: np.ndarray
+    damped_frequencies_hz: np.ndarray
+    damping_ratios: np.ndarray
+    damping_ratios_se: np.ndarray
+    amplitudes: np.ndarray
+    offset: float | None
+    residual_rms_share: float
+    se_inflation: float
+    t: np.ndarray = field(repr=False, default=None)
+    y: np.ndarray = field(repr=False, default=None)
+    fitted: np.ndarray = field(repr=False, default=None)
+
+    def to_json(self) -> dict:
+        """JSON-ready summary of the record's fit."""
+        fl = lambda a: [float(x) for x in a]  # noqa: E731
+        return dict(
+            name=self.name,
+            file=self.file,
+            modes=self.modes,
+            n_points=self.n_points,
+            t_window_s=fl(self.t_window_s),
+            sample_rate_hz=self.sample_rate_hz,
+            frequencies_hz=fl(self.frequencies_hz),
+            frequencies_se_hz=fl(self.frequencies_se_hz),
+            damped_frequencies_hz=fl(self.damped_frequencies_hz),
+            damping_ratios=fl(self.damping_ratios),
+            damping_ratios_se=fl(self.damping_ratios_se),
+            amplitudes=fl(self.amplitudes),
+            offset=self.offset,
+            residual_rms_share=self.residual_rms_share,
+            se_inflation=self.se_inflation,
+        )
+
+
+def _fmt(v: float, se: float) -> str:
+    if not (se > 0 and math.isfinite(se)):
+        return f"{v:.6g}"
+    digits = max(0, 1 - int(math.floor(math.log10(se))))
+    return f"{v:.{digits}f} ± {se:.{digits}f}"
+
+
+@dataclass
+class ImpulseFit:
+    """Fits of all records of an ``[impulse]`` section."""
+
+    key: str
+    records: list[RecordFit]
+
+    def to_json(self) -> dict:
+        """JSON-ready summary: per record, frequencies_hz, damping_ratios, their standard errors,
+        residual RMS share."""
+        return dict(
+            kind="impulse",
+            key=self.key,
+            model="y = c + sum exp(-sigma t) (a cos(omega t) + b sin(omega t)); f_n = |sigma + i omega| / 2 pi, "
+            "zeta = sigma / (2 pi f_n)",
+            records=[r.to_json() for r in self.records],
+        )
+
+    def table(self) -> str:
+        """Plain-text table: one row per mode (1-sigma standard errors)."""
+        lines = [f"impulse responses [{self.key}]: {len(self.records)} record(s)",
+                 f"  {'record':<14} {'mode':>4}  {'f_n [Hz]':>18}  {'zeta [%]':>16}  {'residual':>8}"]
+        for r in self.records:
+            for m in range(r.modes):
+                lines.append(
+                    f"  {r.name:<14} {m + 1:>4}  {_fmt(r.frequencies_hz[m], r.frequencies_se_hz[m]):>18}  "
+                    f"{_fmt(100 * r.damping_ratios[m], 100 * r.damping_ratios_se[m]):>16}  "
+                    f"{100 * r.residual_rms_share:>7.3g}%"
+                )
+        return "\n".join(lines)
+
+    def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
+        """Write ``<key>_<record>.png`` per record in directory ``out``: data and fit against time,
+        and their amplitude spectra with the fitted natural frequencies."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        out = pathlib.Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = []
+        for r in self.records:
+            fig, (ax, axs) = plt.subplots(2, 1, figsize=(8, 7))
+            c = r.offset or 0.0
+            ax.plot(r.t, r.y - c, "-", lw=0.8, color="0.5", label="data")
+            label = f"fit ({r.modes} mode{'s' if r.modes > 1 else ''})"
+            ax.plot(r.t, r.fitted - c, "-", lw=0.9, color="C3", label=label)
+            ax.plot(r.t, r.y - r.fitted, "-", lw=0.6, color="C0", alpha=0.8, label="residual")
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel(f"response - offset ({c:.6g})" if r.offset is not None else "response")
+            ax.set_title(f"{r.name} ({r.file})")
+            ax.legend(fontsize=8)
+            ax.grid(alpha=0.3)
+            dt = 1.0 / r.sample_rate_hz
+            f, A = amplitude_spectrum(r.y, dt)
+            _, Af = amplitude_spectrum(r.fitted, dt)
+            axs.semilogy(f, np.maximum(A, 1e-300), "-", lw=0.8, color="0.5", label="data")
+            axs.semilogy(f, np.maximum(Af, 1e-300), "-", lw=0.9, color="C3", label="fit")
+            for fn, z in zip(r.frequencies_hz, r.damping_ratios):
+                axs.axvline(fn, color="C2", lw=0.8, ls="--")
+                axs.annotate(f"{fn:.4g} Hz\nzeta {100 * z:.3g} %", (fn, np.max(A)), fontsize=7, ha="left", va="top")
+            fmax = min(f[-1], 3 * float(np.max(r.frequencies_hz)))
+            axs.set_xlim(0, fmax)
+            positive = A[(f > 0) & (f <= fmax)]
+            if positive.size:
+                axs.set_ylim(max(positive.min(), positive.max() * 1e-6) / 2, positive.max() * 3)
+            axs.set_xlabel("frequency [Hz]")
+            axs.set_ylabel("amplitude (Hann)")
+            axs.legend(fontsize=8)
+            axs.grid(alpha=0.3, which="both")
+            fig.tight_layout()
+            path = out / f"{self.key.replace('.', '_')}_{_safe(r.name)}.png"
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+            paths.append(path)
+        return paths
+
+    def scene_block(self) -> str:
+        """A TOML comment block: the fitted modes and what they mean for the scene's damping keys."""
+        lines = ["# Damping from impulse responses (1-sigma standard errors).  The scene has no modal damping",
+                 "# key: its damping is physical (belt.CA, tensioner.damping, pulley bearing_damping).  Per mode:",
+                 "#  * a single-inertia mode (e.g. the tensioner arm swinging on its spring) has",
+                 "#    c = 2 zeta omega_n J, so tensioner.damping = (2 zeta omega_n) x J_eff (arm + idler",
+                 "#    inertia about the pivot, kg m^2);",
+                 "#  * a mode that stretches the spans (a torsional mode) has Kelvin-Voigt damping",
+                 "#    zeta = pi f_n CA / EA, so belt.CA = zeta EA / (pi f_n) = (zeta / (pi f_n)) x EA."]
+        for r in self.records:
+            for m in range(r.modes):
+                f, z = r.frequencies_hz[m], r.damping_ratios[m]
+                lines.append(
+                    f"# {r.name} mode {m + 1}: f_n = {_fmt(f, r.frequencies_se_hz[m])} Hz, zeta = "
+                    f"{_fmt(z, r.damping_ratios_se[m])}: 2 zeta omega_n = {4 * math.pi * f * z:.4g} 1/s, "
+                    f"zeta / (pi f_n) = {z / (math.pi * f):.4g} s"
+                )
+        return "\n".join(lines)
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+
+
+# --------------------------------------------------------------------------- fit
+
+
+def _uniform_step(t: np.ndarray, key: str, fname: str) -> float:
+    """The record's mean time step (s); DataError when time does not increase or is not uniform."""
+    d = np.diff(t)
+    bad = np.flatnonzero(d <= 0)
+    if bad.size:
+        i = int(bad[0])
+        raise DataError(key, f"{fname}: time_s does not increase at data row {i + 2} "
+                        f"({t[i]:.6g} s then {t[i + 1]:.6g} s)")
+    dt = float((t[-1] - t[0]) / (t.size - 1))
+    dev = float(np.max(np.abs(d - dt)) / dt)
+    if dev > UNIFORM_RTOL:
+        raise DataError(key, f"{fname}: time_s is not uniformly sampled (steps from {d.min():.4g} to {d.max():.4g} s, "
+                        f"{100 * dev:.3g} % off the mean {dt:.4g} s); resample it to a constant step")
+    return dt
+
+
+def fit_record(t: np.ndarray, y: np.ndarray, modes: int = 1, *, offset: bool = True, key: str = "impulse",
+               name: str = "record", fname: str = "<array>") -> RecordFit:
+    """Fit ``modes`` decaying sinusoids to a uniformly sampled record (t in s, y in any unit).
+
+    Returns a :class:`RecordFit` (natural frequencies in Hz, damping ratios, 1-sigma standard
+    errors); raises :class:`DataError` (one line naming ``key`` and ``fname``) when the record
+    cannot determine them.
+    """
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    n_par = 4 * modes + (1 if offset else 0)
+    need = max(MIN_POINTS, POINTS_PER_PARAMETER * n_par)
+    if t.size < need:
+        raise DataError(key, f"{fname}: {t.size} points in the fitted window; at least {need} are needed "
+                        f"for {modes} mode(s)")
+    dt = _uniform_step(t, key, fname)
+    tau = t - t[0]
+    T = float(tau[-1])
+    scale = float(np.std(y)) if offset else float(np.sqrt(np.mean(y**2)))
+    if not scale > 0 or scale <= 1e-12 * max(float(np.max(np.abs(y))), 1e-300):
+        raise DataError(key, f"{fname}: the response is constant: no oscillation, nothing to fit")
+    # work in units where the window lasts 1 and the response is O(1)
+    ys, taus = y / scale, tau / T
+    guess = _pencil_guess(taus, ys, dt / T, modes, offset)
+    if not isinstance(guess, tuple):
+        found = guess or 0
+        raise DataError(key, f"{fname}: found {found} oscillating component(s) where modes = {modes} were asked: "
+                        "no oscillation to fit, frequency and damping not identifiable "
+                        "(lower modes or check the record)")
+    sig, om = guess
+    coef = _linear_amplitudes(taus, ys, sig, om, offset)
+    p0 = np.concatenate(([coef[:1]] if offset else []) + [sig, om, coef[-2 * modes :]])
+    p, r, J = _levenberg_marquardt(p0, taus, ys, modes, offset)
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(r))):
+        raise DataError(key, f"{fname}: the fit did not converge (non-finite parameters)")
+    dof = max(ys.size - p.size, 1)
+    s2 = float(r @ r) / dof
+    rho = float(r[1:] @ r[:-1] / (r @ r)) if r @ r > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.95)
+    infl = math.sqrt((1 + rho) / (1 - rho))
+    try:
+        cov = s2 * np.linalg.pinv(J.T @ J) * infl**2
+    except np.linalg.LinAlgError:
+        raise DataError(key, f"{fname}: the fit's covariance could not be formed (degenerate modes)") from None
+    o = 1 if offset else 0
+    idx_s, idx_w = o + np.arange(modes), o + modes + np.arange(modes)
+    idx_a, idx_b = o + 2 * modes + np.arange(modes), o + 3 * modes + np.arange(modes)
+    sig, om = p[idx_s] / T, p[idx_w] / T  # 1/s, rad/s
+    flip = om < 0  # (omega, b) and (-omega, -b) are the same component
+    om = np.abs(om)
+    a_s, b_s = p[idx_a], np.where(flip, -p[idx_b], p[idx_b])
+    wn = np.hypot(sig, om)
+    fn, zeta = wn / (2 * np.pi), sig / np.maximum(wn, 1e-300)
+    fn_se, zeta_se, amp, amp_se = (np.zeros(modes) for _ in range(4))
+    for m in range(modes):
+        i2 = [idx_s[m], idx_w[m]]
+        C = cov[np.ix_(i2, i2)] / T**2
+        g_f = np.array([sig[m], om[m]]) / (2 * np.pi * wn[m])
+        g_z = np.array([om[m] ** 2, -sig[m] * om[m]]) / wn[m] ** 3
+        if flip[m]:
+            g_f[1], g_z[1] = -g_f[1], -g_z[1]
+        fn_se[m] = math.sqrt(max(float(g_f @ C @ g_f), 0.0))
+        zeta_se[m] = math.sqrt(max(float(g_z @ C @ g_z), 0.0))
+        A = math.hypot(a_s[m], b_s[m])
+        amp[m] = A * scale
+        ia = [idx_a[m], idx_b[m]]
+        g_a = np.array([p[idx_a[m]], p[idx_b[m]]]) / max(A, 1e-300)
+        amp_se[m] = math.sqrt(max(float(g_a @ cov[np.ix_(ia, ia)] @ g_a), 0.0)) * scale
+    for m in np.argsort(fn):
+        where = f"{fname}: the mode at {fn[m]:.4g} Hz"
+        cycles = om[m] / (2 * np.pi) * T
+        if cycles < MIN_CYCLES or zeta[m] >= 0.9:
+            raise DataError(key, f"{fname}: no oscillation (a fitted component makes {cycles:.2g} cycles in the "
+                            f"window, zeta {zeta[m]:.2g}): frequency and damping not identifiable; lower modes "
+                            "or check the record")
+        if amp[m] < SIGNIFICANCE * amp_se[m]:
+            raise DataError(key, f"{where} has an amplitude at the noise level ({amp[m]:.3g} ± {amp_se[m]:.2g}): "
+                            f"the record shows fewer than modes = {modes} oscillating components")
+        if zeta[m] < -SIGNIFICANCE * zeta_se[m]:
+            raise DataError(key, f"{where} grows instead of decaying (zeta = {zeta[m]:.3g} ± {zeta_se[m]:.2g}): "
+                            "damping not identifiable from this record")
+        if zeta[m] < SIGNIFICANCE * zeta_se[m]:
+            raise DataError(key, f"{where} shows no measurable decay (zeta = {zeta[m]:.3g} ± {zeta_se[m]:.2g}): "
+                            "damping not identifiable (none, or too light for this record's length and noise)")
+    order = np.argsort(fn)
+    fitted = np.asarray(decay_model(jnp.asarray(p), jnp.asarray(taus), modes, offset)) * scale
+    c = float(p[0] * scale) if offset else None
+    resid = y - fitted
+    dyn = y - (c or 0.0)
+    return RecordFit(
+        name=name,
+        file=fname,
+        modes=modes,
+        n_points=int(t.size),
+        t_window_s=(float(t[0]), float(t[-1])),
+        sample_rate_hz=1.0 / dt,
+        frequencies_hz=fn[order],
+        frequencies_se_hz=fn_se[order],
+        damped_frequencies_hz=(om / (2 * np.pi))[order],
+        damping_ratios=zeta[order],
+        damping_ratios_se=zeta_se[order],
+        amplitudes=amp[order],
+        offset=c,
+        residual_rms_share=float(np.sqrt(np.mean(resid**2)) / max(np.sqrt(np.mean(dyn**2)), 1e-300)),
+        se_inflation=infl,
+        t=t,
+        y=y,
+        fitted=fitted,
+    )
+
+
+def _records(section: dict, key: str) -> list[tuple[str, dict]]:
+    """(key of the record, its table) for ``[[key.record]]`` tables or a single ``[key]`` record."""
+    if not isinstance(section, dict):
+        raise DataError(key, "must be a table")
+    if "record" in section:
+        extra = [k for k in section if k != "record"]
+        if extra:
+            raise DataError(f"{key}.{extra[0]}", "unknown key next to [[record]] tables "
+                            "(record keys go in each record)")
+        recs = section["record"]
+        if isinstance(recs, dict):
+            recs = [recs]
+        if not isinstance(recs, list) or not recs or not all(isinstance(r, dict) for r in recs):
+            raise DataError(f"{key}.record", "must be one or more [[record]] tables")
+        return [(f"{key}.record[{i}]", r) for i, r in enumerate(recs)]
+    if "file" in section:
+        return [(key, section)]
+    raise DataError(key, "needs [[impulse.record]] tables (file = ..., modes = ...)")
+
+
+def fit_impulse(section: dict, base: pathlib.Path, key: str = "impulse") -> ImpulseFit:
+    """Fit every record of an ``[impulse]`` section (keys in the module docstring); CSV paths are
+    relative to ``base``.  Returns an :class:`ImpulseFit`; raises :class:`DataError` (one line)."""
+    fits = []
+    for rkey, rec in _records(section, key):
+        unknown = [k for k in rec if k not in RECORD_KEYS]
+        if unknown:
+            raise DataError(f"{rkey}.{unknown[0]}", f"unknown key (known: {', '.join(RECORD_KEYS)})")
+        fname = rec.get("file")
+        if not isinstance(fname, str) or not fname:
+            raise DataError(f"{rkey}.file", "missing (a CSV file with columns time_s, response)")
+        modes = rec.get("modes", 1)
+        if isinstance(modes, bool) or not isinstance(modes, int) or not 1 <= modes <= MAX_MODES:
+            raise DataError(f"{rkey}.modes", f"must be a whole number from 1 to {MAX_MODES}, got {modes!r}")
+        offset = rec.get("offset", True)
+        if not isinstance(offset, bool):
+            raise DataError(f"{rkey}.offset", f"must be true or false, got {offset!r}")
+        name = rec.get("name", pathlib.Path(fname).stem)
+        if not isinstance(name, str) or not name:
+            raise DataError(f"{rkey}.name", f"must be a non-empty string, got {name!r}")
+        data = read_csv(pathlib.Path(base) / fname, ["time_s", "response"], f"{rkey} ({fname})")
+        t, y = data["time_s"], data["response"]
+        t0 = number(rec, "t_start_s", rkey) if "t_start_s" in rec else float(t[0])
+        t1 = number(rec, "t_end_s", rkey) if "t_end_s" in rec else float(t[-1])
+        if t1 <= t0:
+            raise DataError(f"{rkey}.t_end_s", f"must be after t_start_s ({t0:.6g} s), got {t1:.6g} s")
+        _uniform_step(t, rkey, fname)
+        keep = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
+        fits.append(fit_record(t[keep], y[keep], modes, offset=offset, key=rkey, name=name, fname=fname))
+    return ImpulseFit(key=key, records=fits)
+
+
+if __name__ == "__main__":  # pragma: no cover - a quick look: python -m identification.damping DATA.toml
+    import sys
+    import tomllib
+
+    path = pathlib.Path(sys.argv[1])
+    res = fit_impulse(tomllib.loads(path.read_text())["impulse"], path.parent)
+    print(res.table())
+    print(res.scene_block())
+    print(json.dumps(res.to_json(), indent=1)[:3000])
