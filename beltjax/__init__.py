@@ -15,6 +15,28 @@ if "xla_cpu_multi_thread_eigen" not in _os.environ.get("XLA_FLAGS", ""):
 import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
+# XLA's CPU client runs batched LAPACK calls (vmapped Cholesky, triangular solves, eigh)
+# through jax::ParallelBatchMap on its intra-op thread pool; when such a call itself runs on a
+# pool worker (as the continuation of a dot), it waits for tasks queued behind it and the
+# process deadlocks with every thread asleep (seen with jax 0.10 on 2 cores: a vmapped
+# jacfwd through statics + eigenvalues, and optax L-BFGS steps, hung after minutes).  A pool
+# of one thread cannot wait on itself: the CPU client is created while this thread is pinned
+# to one core (pool sizes follow the affinity mask), then the mask is restored.  XLA's CPU
+# kernels at these sizes are single-threaded anyway.  BELTJAX_CPU_POOL=default keeps XLA's.
+def _single_thread_cpu_pool():
+    if _os.environ.get("BELTJAX_CPU_POOL") == "default" or not hasattr(_os, "sched_getaffinity"):
+        return
+    cpus = _os.sched_getaffinity(0)
+    if len(cpus) < 2:
+        return
+    _os.sched_setaffinity(0, {min(cpus)})
+    try:
+        _jax.devices("cpu")
+    finally:
+        _os.sched_setaffinity(0, cpus)
+
+
+_single_thread_cpu_pool()
 
 from beltjax.ancf import Section  # noqa: E402
 from beltjax.span import SpanResult, analyse_span  # noqa: E402

@@ -1,0 +1,55 @@
+"""Write the bench modal-fit datasets from the thesis' *measured* natural frequencies.
+
+Not synthesised: the frequencies are the bench measurements printed in the thesis (Silveira
+2015), read from ../shared/reference/thesis_reference.json:
+
+* ``bench_modal/``: the two-pulley bench at T = 200, 400 and 600 N (Tables 7.2, 7.4, 7.6;
+  "experiment" column; modes without a measurement are left out).  Fitted: EI (one value) and
+  the unstretched belt length of each configuration (the installation tension was set by
+  moving the alternator, so each configuration has its own effective length).
+
+Run from the repository root: ``python identification/examples/make_bench_modal.py``.
+"""
+
+import json
+import pathlib
+
+HERE = pathlib.Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+REFERENCE = REPO.parent / "shared" / "reference" / "thesis_reference.json"
+
+
+def _mode_line(label: str, f: float) -> str:
+    return f'  {{ label = "{label}", frequency_hz = {f} }},'
+
+
+def main() -> None:
+    ref = json.loads(REFERENCE.read_text())
+    cases = ref["two_pulley_bench"]["modal"]["cases"]
+    out = HERE / "bench_modal"
+    out.mkdir(exist_ok=True)
+    lines = [
+        "# Modal fit of the thesis' two-pulley bench: measured frequencies of Tables 7.2, 7.4, 7.6",
+        "# (written by make_bench_modal.py from ../shared/reference/thesis_reference.json;",
+        "# measured on the bench, not synthesised).  beltjax fit identification/examples/bench_modal/dataset.toml",
+        "[modal]",
+        'parameters = ["belt.EI", "belt.length"]',
+        'per_configuration = ["belt.length"]   # each tension was set by moving the alternator',
+        "",
+    ]
+    for c in cases:
+        T = int(c["T"])
+        lines += [
+            "[[modal.configuration]]",
+            f'name = "T{T}"',
+            f'scene = "../../../scenes/two_pulley_T{T}.toml"   # X_A = {c["X_A"]} m',
+            "modes = [",
+        ]
+        lines += [_mode_line(shape, f_exp) for _, _, f_exp, shape in c["modes"] if f_exp is not None]
+        lines += ["]", ""]
+    (out / "dataset.toml").write_text("\n".join(lines))
+    print(f"wrote {out / 'dataset.toml'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,83 @@
+"""``beltjax fit DATA.toml``: read a dataset, fit each of its sections, write the results.
+
+A dataset (TOML; CSV paths relative to it) holds any of these sections, each fitted by its
+own module:
+
+=================  =======================================  ======================================
+section            data                                     fitted
+=================  =======================================  ======================================
+``[tensile]``      sinusoidal tensile records               complex modulus G(f), EA(f), DA(f)
+``[torque_angle]`` tensioner torque-angle loop              spring stiffness, free angle, friction
+``[impulse]``      decaying responses                       modal frequencies and damping ratios
+``[modal]``        measured natural frequencies + scenes    any scene parameters (EI, length, ...)
+=================  =======================================  ======================================
+
+Writes ``fit.json`` ({section: results}), ``fitted_parameters.toml`` (blocks to paste into a
+scene) and each section's plots into the output folder.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import tomllib
+
+from identification.data import DataError
+
+
+def _fitters():
+    from identification import damping, modal_fit, tensile, torque_angle
+
+    return {
+        "tensile": tensile.fit_tensile,
+        "torque_angle": torque_angle.fit_torque_angle,
+        "impulse": damping.fit_impulse,
+        "modal": modal_fit.fit_modal,
+    }
+
+
+SECTIONS = ("tensile", "torque_angle", "impulse", "modal")
+
+
+def load(path: pathlib.Path) -> dict:
+    """The dataset's TOML tables; :class:`DataError` for a missing or malformed file."""
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise DataError("", f"{path}: dataset file not found")
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise DataError("", f"{path}: not valid TOML ({exc})") from None
+    unknown = [k for k in data if k not in SECTIONS]
+    if unknown:
+        raise DataError(unknown[0], f"unknown section in {path.name} (known: {', '.join(SECTIONS)})")
+    if not data:
+        raise DataError("", f"{path}: no section to fit (add one of {', '.join(SECTIONS)})")
+    return data
+
+
+def fit_dataset(path: pathlib.Path) -> dict:
+    """Fit every section of the dataset at ``path``: {section: result object}."""
+    path = pathlib.Path(path)
+    data = load(path)
+    fitters = _fitters()
+    return {name: fitters[name](data[name], path.parent, name) for name in SECTIONS if name in data}
+
+
+def run(path: pathlib.Path, out: pathlib.Path) -> int:
+    """Command ``beltjax fit``: fit, print the tables, write fit.json, the scene blocks and plots."""
+    path = pathlib.Path(path)
+    print(f"fitting {path}", flush=True)
+    results = fit_dataset(path)
+    report, blocks, files = {"dataset": str(path)}, [], []
+    for name, res in results.items():
+        print(f"\n[{name}]")
+        print(res.table())
+        report[name] = res.to_json()
+        blocks.append(f"# ---- from [{name}] of {path.name}\n{res.scene_block()}")
+        files += res.plot(out)
+    (out / "fit.json").write_text(json.dumps(report, indent=2))
+    (out / "fitted_parameters.toml").write_text("\n\n".join(blocks) + "\n")
+    print(f"\nwrote {out / 'fit.json'}, {out / 'fitted_parameters.toml'}"
+          + "".join(f", {f}" for f in files))
+    return 0
