@@ -400,6 +400,21 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- fit
+
+
+def cmd_fit(args) -> int:
+    """Identification: fit.json, a scene block with the fitted parameters, plots."""
+    from identification import fit
+    from identification.data import DataError
+
+    out = _out_dir(args.out)
+    try:
+        return _analysis(fit.run, pathlib.Path(args.data), out)
+    except DataError as exc:
+        raise InputError(str(exc)) from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="beltjax", description="Belt-drive simulation with ANCF belt spans (JAX).")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
@@ -453,6 +468,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="fraction of the run left out of the summary and spectra (start-up), default 0")
     si.add_argument("--out", default="out", help="output directory (default ./out)")
     si.set_defaults(func=cmd_simulate)
+
+    fi = sub.add_parser("fit", help="fit belt and tensioner parameters to bench data (identification)")
+    fi.add_argument("data", help="dataset file (TOML) pointing at CSV files")
+    fi.add_argument("--out", default="out", help="output directory (default ./out)")
+    fi.set_defaults(func=cmd_fit)
+
     return p
 
 
@@ -462,7 +483,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command is None:
-            raise InputError("a command is required: span, statics, modal, campbell or simulate")
+            raise InputError("a command is required: span, statics, modal, campbell, simulate or fit")
         _enable_compile_cache()
         return args.func(args)
     except InputError as exc:
