@@ -400,7 +400,7 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-# --------------------------------------------------------------------------- fit
+# --------------------------------------------------------------------------- fit, sweep
 
 
 def cmd_fit(args) -> int:
@@ -412,6 +412,19 @@ def cmd_fit(args) -> int:
     try:
         return _analysis(fit.run, pathlib.Path(args.data), out)
     except DataError as exc:
+        raise InputError(str(exc)) from None
+
+
+def cmd_sweep(args) -> int:
+    """Batched parametric sweep: sweep.csv, sweep.json, plots."""
+    from beltjax import sweep
+    from beltjax.parameters import ParameterError
+
+    scene = _load(args.scene)
+    out = _out_dir(args.out)
+    try:
+        return _analysis(sweep.run, scene, pathlib.Path(args.spec), out, backend=args.backend)
+    except (sweep.SweepError, ParameterError) as exc:
         raise InputError(str(exc)) from None
 
 
@@ -474,6 +487,14 @@ def build_parser() -> argparse.ArgumentParser:
     fi.add_argument("--out", default="out", help="output directory (default ./out)")
     fi.set_defaults(func=cmd_fit)
 
+    sw = sub.add_parser("sweep", help="batched parametric sweep (grid, random, tolerance study)")
+    sw.add_argument("scene", help="scene file (TOML)")
+    sw.add_argument("spec", help="sweep file (TOML)")
+    sw.add_argument("--backend", choices=["local", "dask"], default="local",
+                    help="where the batch runs: this process (vmap, sharded over local devices) or a Dask cluster")
+    sw.add_argument("--out", default="out", help="output directory (default ./out)")
+    sw.set_defaults(func=cmd_sweep)
+
     return p
 
 
@@ -483,7 +504,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command is None:
-            raise InputError("a command is required: span, statics, modal, campbell, simulate or fit")
+            raise InputError("a command is required: span, statics, modal, campbell, simulate, fit or sweep")
         _enable_compile_cache()
         return args.func(args)
     except InputError as exc:
