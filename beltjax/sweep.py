@@ -121,7 +121,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, drive_modal, parameters, statics
-from beltjax.scene import Scene
+from beltjax.scene import Scene, _describe
 
 #: most cases in one sweep
 MAX_CASES = 100_000
@@ -232,18 +232,6 @@ class Spec:
     @property
     def n_cases(self) -> int:
         return int(np.prod(self.grid_shape, dtype=np.int64)) * (self.samples if self.random else 1)
-
-
-def _describe(v) -> str:
-    if isinstance(v, bool):
-        return f"a boolean ({str(v).lower()})"
-    if isinstance(v, str):
-        return f"a string ({v!r})"
-    if isinstance(v, dict):
-        return "a table"
-    if isinstance(v, list):
-        return "an array"
-    return f"{type(v).__name__} ({v!r})"
 
 
 def _number(key: str, v, *, minimum: float | None = None, strict: bool = False) -> float:
