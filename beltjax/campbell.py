@@ -34,7 +34,7 @@ def _batch(scene: Scene, speeds, n_modes: int):
         # the tensioner arm), cheap next to the eigen-solve
         qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
         M, G, K = drive_modal.linearise(qi, scene, inst, v)
-        stable, f = drive_modal._frequencies_core(M, G, K, nr, gyro, drive_modal.rigid_mode(scene, inst))
+        stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyro, drive_modal.rigid_mode(scene, inst))
         return f[:n_modes], stable, info[0] > 0.5
 
     return jax.vmap(one)(speeds)

@@ -400,7 +400,7 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-# --------------------------------------------------------------------------- fit, sweep
+# --------------------------------------------------------------------------- fit, sweep, optimize
 
 
 def cmd_fit(args) -> int:
@@ -425,6 +425,19 @@ def cmd_sweep(args) -> int:
     try:
         return _analysis(sweep.run, scene, pathlib.Path(args.spec), out, backend=args.backend)
     except (sweep.SweepError, ParameterError) as exc:
+        raise InputError(str(exc)) from None
+
+
+def cmd_optimize(args) -> int:
+    """Gradient-based layout optimisation: optimize.json, the optimised scene, before/after plots."""
+    from beltjax import optimize
+    from beltjax.parameters import ParameterError
+
+    scene = _load(args.scene)
+    out = _out_dir(args.out)
+    try:
+        return _analysis(optimize.run, scene, pathlib.Path(args.spec), out, scene_path=pathlib.Path(args.scene))
+    except (optimize.OptimizeError, ParameterError) as exc:
         raise InputError(str(exc)) from None
 
 
@@ -495,6 +508,11 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--out", default="out", help="output directory (default ./out)")
     sw.set_defaults(func=cmd_sweep)
 
+    op = sub.add_parser("optimize", help="gradient-based layout optimisation of a drive")
+    op.add_argument("scene", help="scene file (TOML)")
+    op.add_argument("spec", help="optimisation file (TOML)")
+    op.add_argument("--out", default="out", help="output directory (default ./out)")
+    op.set_defaults(func=cmd_optimize)
     return p
 
 
@@ -504,7 +522,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command is None:
-            raise InputError("a command is required: span, statics, modal, campbell, simulate, fit or sweep")
+            raise InputError("a command is required: span, statics, modal, campbell, simulate, fit, sweep or optimize")
         _enable_compile_cache()
         return args.func(args)
     except InputError as exc:

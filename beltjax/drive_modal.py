@@ -106,8 +106,13 @@ def _project_rigid(M, G, K, n_rigid, v0):
     return T, T.T @ M @ T, T.T @ G @ T, T.T @ K @ T
 
 
-def _frequencies_core(M, G, K, n_rigid: int, gyroscopic: bool, v0=None):
-    """Pure-JAX frequencies only (stable, freqs_hz ascending, rigid modes first)."""
+def frequencies_from_matrices(M, G, K, n_rigid: int, gyroscopic: bool, v0=None):
+    """Natural frequencies from linearised matrices: (stable, frequencies in Hz ascending, rigid modes first).
+
+    M, G, K: mass [kg], gyroscopic [kg/s] and stiffness [N/m] matrices of the independent
+    coordinates; n_rigid: number of rigid-body modes (0 or 1); gyroscopic: solve the
+    gyroscopic problem (needs the rigid mode v0 when n_rigid is 1).  Pure JAX, vmap-able.
+    """
     if not gyroscopic:
         omega2 = jnp.linalg.eigvalsh(_mass_normalised(M, K))
         f = jnp.sqrt(jnp.clip(omega2, 0.0, None)) / (2 * jnp.pi)
@@ -147,8 +152,12 @@ def _modes_core(M, G, K, n_rigid: int, gyroscopic: bool, v0=None):
 
 
 @partial(jax.jit, static_argnames=("gyroscopic",))
-def _modes_at(scene: Scene, qi, inst, speed, gyroscopic: bool):
-    """Modes about a given equilibrium (qi, inst) at belt speed ``speed`` (m/s), jitted."""
+def modes_at(scene: Scene, qi, inst, speed, gyroscopic: bool):
+    """Modes about a given equilibrium (qi, inst) at belt speed ``speed`` [m/s], jitted.
+
+    Returns a dict: stable, freqs [Hz], complex shapes, the matrices M, G, K and the
+    kinematic Jacobian J of all coordinates with respect to the independent ones.
+    """
     M, G, K = linearise(qi, scene, inst, speed)
     stable, f, shapes = _modes_core(M, G, K, n_rigid_modes(scene), gyroscopic, rigid_mode(scene, inst))
     J = jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(qi)
@@ -166,7 +175,7 @@ def frequencies(scene: Scene, speed=None):
     qi, inst, _ = statics.equilibrium(scene, speed=speed)
     M, G, K = linearise(qi, scene, inst, speed)
     gyro = scene.model.has("transport")
-    stable, f = _frequencies_core(M, G, K, n_rigid_modes(scene), gyro, rigid_mode(scene, inst))
+    stable, f = frequencies_from_matrices(M, G, K, n_rigid_modes(scene), gyro, rigid_mode(scene, inst))
     return jnp.where(stable, f, jnp.nan)
 
 
@@ -340,7 +349,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     st = statics.analyse_statics(scene, v)
     gyro = scene.model.has("transport") and v != 0.0
     qi = jnp.asarray(st.qi)
-    out = _modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
+    out = modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
     stable = bool(out["stable"])
     n = drive.n_independent(scene)
     if not stable:

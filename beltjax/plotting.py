@@ -300,11 +300,13 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
     plt.close(fig)
 
 
-def plot_campbell(result, path, title: str = ""):
+def plot_campbell(result, path, title: str = "", bands=()):
     """Save a Campbell diagram (PNG): mode frequencies against drive-pulley speed, order lines, crossings.
 
     result: a CampbellResult.  Rigid-body (0 Hz) modes are not drawn; speeds
     without frequencies (``stable`` false: unstable, or no equilibrium) are shaded.
+    bands: speed bands to highlight, each ``(rpm_low, rpm_high, orders, note)``: the band is
+    shaded and its order lines [k x rpm/60 Hz] drawn bold inside it, with the note as a label.
     """
     from beltjax.drive_modal import RIGID_HZ
 
@@ -342,6 +344,14 @@ def plot_campbell(result, path, title: str = ""):
         for i in np.flatnonzero(unstable):
             ax.axvspan(rpm[i] - step, rpm[i] + step, color="crimson", alpha=0.12, lw=0)
         ax.plot([], [], color="crimson", alpha=0.3, lw=8, label="no frequencies (unstable or no equilibrium)")
+    for lo, hi, band_orders, note in bands:
+        ax.axvspan(lo, hi, color="gold", alpha=0.18, lw=0, zorder=0)
+        for k in band_orders:
+            xs = np.array([lo, hi], float)
+            ax.plot(xs, k * xs / 60.0, color="darkorange", lw=3.0, alpha=0.8, zorder=4)
+        if note:
+            ax.text(0.5 * (lo + hi), 0.98 * top, note, ha="center", va="top", fontsize=8, color="0.2",
+                    bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="darkorange", alpha=0.85))
     cx = [c for c in result.crossings if c["mode"] - 1 in colors]
     if cx:
         ax.scatter([c["rpm"] for c in cx], [c["frequency_hz"] for c in cx], s=36, zorder=5,

@@ -608,7 +608,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     stable = jnp.asarray(True)
     if "modal" in outputs:
         M, G, K = drive_modal.linearise(qi, sc, inst, v)
-        stable, f = drive_modal._frequencies_core(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
+        stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
         res["frequencies_hz"] = jnp.where(stable, f[:modes], jnp.nan)
         res["stable"] = stable
     if "campbell" in outputs:
@@ -618,7 +618,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             vv = drive.belt_speed(sc, r)
             q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=4)
             M, G, K = drive_modal.linearise(q2, sc, inst2, vv)
-            ok, f = drive_modal._frequencies_core(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
+            ok, f = drive_modal.frequencies_from_matrices(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
             ok = ok & (info[0] > 0.5)
             return jnp.where(ok, f[:modes], jnp.nan), ok
 

@@ -10,7 +10,7 @@ Measured entry points (all jitted; the scene is an argument, so every number of
 the scene can change without recompiling):
 
 * statics     ``statics._statics_core`` (Newton + outputs) — what ``analyse_statics`` runs
-* modal       ``drive_modal._modes_at`` (linearisation by autodiff + eigh, at the equilibrium)
+* modal       ``drive_modal.modes_at`` (linearisation by autodiff + eigh, at the equilibrium)
 * modal+      the whole ``drive_modal.analyse_modes`` (adds the labels, numpy)
 * Campbell    ``campbell.campbell_frequencies`` over 100 speeds (vmapped, chunks of 32)
 
@@ -51,8 +51,8 @@ def main():
         _, c_st = _common.time_first_call(statics._statics_core, sc, 0.0)
         t_st = _common.time_steady(statics._statics_core, sc, 0.0)
         out, _ = statics._statics_core(sc, 0.0)
-        _, c_mo = _common.time_first_call(drive_modal._modes_at, sc, out["qi"], out["inst"], 0.0, False)
-        t_mo = _common.time_steady(drive_modal._modes_at, sc, out["qi"], out["inst"], 0.0, False)
+        _, c_mo = _common.time_first_call(drive_modal.modes_at, sc, out["qi"], out["inst"], 0.0, False)
+        t_mo = _common.time_steady(drive_modal.modes_at, sc, out["qi"], out["inst"], 0.0, False)
         t_full = _common.time_steady(drive_modal.analyse_modes, sc, repeats=7)
         results[name] = dict(
             n_independent=drive.n_independent(sc), statics=t_st, statics_first_call_s=c_st,
