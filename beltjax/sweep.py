@@ -1041,7 +1041,7 @@ def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> 
             if labels and name.startswith("f") and name[1:-3].isdigit():
                 m = int(name[1:-3]) - 1
                 if m < len(labels):
-                    title = f"{name}: {labels[m]}"
+                    title = f"{name} (nominal scene: {labels[m]})"
             ax.set_title(title, fontsize=8)
             ax.set_xlabel(spec.grid[0].parameter, fontsize=8)
             ax.set_ylabel(unit if unit != "[N]" else f"{name.split('_')[0]} [N]", fontsize=8)
@@ -1052,6 +1052,8 @@ def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> 
         for ax in list(axes.flat)[len(names):]:
             ax.set_visible(False)
         note = " (mean over the random samples; band: min-max)" if shape[-1] > 1 else ""
+        if fname == "sweep_frequencies.png":
+            note += "\nf_k: the k-th frequency of each case, sorted, not tracked (a mode may change rank across cases)"
         fig.suptitle((spec.description or "parametric sweep") + note, fontsize=9)
         fig.tight_layout()
         fig.savefig(path / fname, dpi=100)
