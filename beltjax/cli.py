@@ -95,7 +95,7 @@ def _orders(text):
         except ValueError:
             raise argparse.ArgumentTypeError(f"--orders must be comma-separated numbers, got {text!r}") from None
         if not math.isfinite(k) or k <= 0:
-            raise argparse.ArgumentTypeError(f"--orders must be positive, got {x!r} in {text!r}")
+            raise argparse.ArgumentTypeError(f"--orders must be positive and finite, got {x!r} in {text!r}")
         out.append(k)
     return tuple(out)
 
@@ -523,6 +523,9 @@ def main(argv=None) -> int:
         args = build_parser().parse_args(argv)
         if args.command is None:
             raise InputError("a command is required: span, statics, modal, campbell, simulate, fit, sweep or optimize")
+        for name in ("scene", "spec", "data"):
+            if getattr(args, name, None) == "":
+                raise InputError(f"argument {name}: empty file name")
         _enable_compile_cache()
         return args.func(args)
     except InputError as exc:

@@ -8,7 +8,7 @@ Top level (all optional): ``steps`` (int >= 1, default 150: most optimiser steps
 to a tenth of it over ``steps``), ``tolerance`` (>= 0, default 1e-4) and ``patience`` (int >= 1,
 default 30): stop when the best loss has not fallen by more than ``tolerance`` (relative) for
 ``patience`` steps, or when it reaches 0;
-``elements_per_span`` (int >= 1): a coarser mesh for the optimisation (the result is checked
+``elements_per_span`` (int, 1 to 400): a coarser mesh for the optimisation (the result is checked
 with the scene's own mesh at the end); ``description`` (string).  Then tables::
 
     [[variable]]                         # one per parameter to move; every other parameter is fixed
@@ -114,7 +114,7 @@ import numpy as np
 import optax
 
 from beltjax import drive, drive_modal, parameters, statics
-from beltjax.scene import TENSIONER, Scene, SceneError, loads_scene
+from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, loads_scene
 
 #: temperature (Hz) of the log-sum-exp maximum over the sampled speeds
 SOFT_HZ = 0.5
@@ -336,9 +336,9 @@ def _parse_objective(d, i: int, scene: Scene) -> Objective:
         return Objective(kind, weight, pulley=_route_entry(t, "pulley", scene, True))
     orders = d.get("orders")
     if (not isinstance(orders, list) or not orders
-            or any(isinstance(k, bool) or not isinstance(k, (int, float)) or not k > 0 for k in orders)):
-        got = _describe(orders) if orders is not None else "nothing"
-        t.fail("orders", f"expected a non-empty array of positive numbers, got {got}")
+            or any(isinstance(k, bool) or not isinstance(k, (int, float)) or not 0 < k < math.inf for k in orders)):
+        got = (_describe(orders) if not isinstance(orders, list) else repr(orders)) if orders is not None else "nothing"
+        t.fail("orders", f"expected a non-empty array of positive finite numbers, got {got}")
     rpm = d.get("rpm")
     if (not isinstance(rpm, list) or len(rpm) != 2
             or any(isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) for r in rpm)):
@@ -410,7 +410,7 @@ def parse(spec: dict, scene: Scene) -> Problem:
         learning_rate=t.number("learning_rate", 0.01, positive=True),
         tolerance=t.number("tolerance", 1e-4, nonnegative=True),
         patience=t.integer("patience", 30, minimum=1),
-        elements_per_span=t.integer("elements_per_span", None, minimum=1),
+        elements_per_span=t.integer("elements_per_span", None, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN),
         description=t.string("description", ""),
     )
 

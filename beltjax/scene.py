@@ -31,7 +31,7 @@ speeds in rpm where it ends in ``_rpm``.  Tables and keys:
 ``[route]``     order (names in the belt's direction of travel), back_side
                 (default []), direction ("cw" default, or "ccw").
 ``[model]``     fidelity ("ancf" default, or "rotational"), elements_per_span
-                (int >= 1, default 16), effects (subset of :data:`EFFECTS`,
+                (int, 1 to 400, default 16), effects (subset of :data:`EFFECTS`,
                 default []), optional bending ("linear" default, or "exact").
 ``[[torque]]``  optional loads: pulley (a free route entry, or "tensioner_arm"), mean_Nm, amplitude_Nm,
                 frequency_hz, phase_deg, t_start_s, t_end_s: a moment (N m, CCW
@@ -90,6 +90,8 @@ FIDELITIES = ("ancf", "rotational")
 SOLVERS = ("generalized_alpha", "tsit5", "dopri8", "kvaerno5")
 DIRECTIONS = geometry.DIRECTIONS
 TENSIONER = "tensioner"  # the idler's name in route.order (reserved)
+#: most ANCF elements per span (as ``beltjax span --elements``): more only exhausts memory
+MAX_ELEMENTS_PER_SPAN = 400
 ARM = "tensioner_arm"  # a [[torque]] on the tensioner's arm (about its pivot)
 
 
@@ -376,7 +378,7 @@ class _Table:
             self.fail(k, f"must be >= 0, got {v!r}")
         return x
 
-    def integer(self, k, *, required=True, default=None, minimum=None):
+    def integer(self, k, *, required=True, default=None, minimum=None, maximum=None):
         v = self.raw(k, required)
         if v is None:
             return default
@@ -384,6 +386,8 @@ class _Table:
             self.fail(k, f"expected an integer, got {_describe(v)}")
         if minimum is not None and v < minimum:
             self.fail(k, f"must be >= {minimum}, got {v!r}")
+        if maximum is not None and v > maximum:
+            self.fail(k, f"must be <= {maximum}, got {v!r}")
         return v
 
     def vector2(self, k, *, required=True, default=None):
@@ -391,7 +395,7 @@ class _Table:
         if v is None:
             return default
         if not isinstance(v, list) or len(v) != 2:
-            self.fail(k, f"expected [x, y] (two numbers), got {_describe(v) if not isinstance(v, list) else v!r}")
+            self.fail(k, f"expected [x, y] (two numbers), got {_describe(v) if not isinstance(v, list) else repr(v)}")
         for i, x in enumerate(v):
             if isinstance(x, bool) or not isinstance(x, (int, float)):
                 self.fail(k, f"expected [x, y] (two numbers), element {i} is {_describe(x)}")
@@ -605,7 +609,7 @@ def _parse_route(data, names, has_tensioner, source) -> Route:
 def _parse_model(data, source) -> Model:
     t = _Table(data, "model", source, _MODEL_KEYS)
     fidelity = t.string("fidelity", required=False, default="ancf", choices=FIDELITIES)
-    n = t.integer("elements_per_span", required=False, default=16, minimum=1)
+    n = t.integer("elements_per_span", required=False, default=16, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN)
     effects = t.strings("effects", required=False, default=[])
     for e in effects:
         if e not in EFFECTS:

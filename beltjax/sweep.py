@@ -486,9 +486,9 @@ def _check_range(key: str, path: str, values) -> None:
     name = path.rsplit(".", 1)[-1]
     v = np.asarray(values, float)
     if name in _POSITIVE and np.any(v <= 0):
-        raise SweepError(key, f"{path} must be > 0, got {v[v <= 0][0]!r}")
+        raise SweepError(key, f"{path} must be > 0, got {float(v[v <= 0][0])!r}")
     if name in _NONNEGATIVE and np.any(v < 0):
-        raise SweepError(key, f"{path} must be >= 0, got {v[v < 0][0]!r}")
+        raise SweepError(key, f"{path} must be >= 0, got {float(v[v < 0][0])!r}")
 
 
 def check_spec(scene: Scene, spec: Spec) -> None:

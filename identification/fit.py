@@ -42,6 +42,8 @@ SECTIONS = ("tensile", "torque_angle", "impulse", "modal")
 def load(path: pathlib.Path) -> dict:
     """The dataset's TOML tables; :class:`DataError` for a missing or malformed file."""
     path = pathlib.Path(path)
+    if path.is_dir():
+        raise DataError("", f"{path}: is a directory, not a dataset file")
     if not path.is_file():
         raise DataError("", f"{path}: dataset file not found")
     try:

@@ -1,0 +1,407 @@
+"""Robustness to bad input: one table of broken inputs across every ``beltjax`` command.
+
+Each row is a realistic mistake (a broken copy of a shipped scene, sweep, optimisation or
+identification file written into ``tmp_path``, or a bad command-line argument) for one of
+``beltjax statics | modal | campbell | simulate | span | fit | sweep | optimize``.  For every
+row the test checks that the command
+
+* exits with status 2 (the status of an input error; 1 would mean an unexpected exception
+  caught by the last-resort handler),
+* writes exactly one non-empty line to stderr, starting with ``beltjax: error:``, with no
+  ``Traceback``, that contains the expected text naming the offending key or the cause,
+* writes no result file (so in particular no result with NaN in it).
+
+Most rows run ``beltjax.cli.main`` in-process; a few run the installed console script or
+``python -m beltjax.cli`` in a subprocess to check the real exit status and stderr.  Nearly
+all errors come from validation before any JIT compilation; the rows marked ``compiles``
+(at most two) fail in the installation of the belt, after a small compilation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+from typing import Callable
+
+import pytest
+
+from beltjax.cli import main
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+SCENES = REPO / "scenes"
+EXAMPLES = REPO / "identification" / "examples"
+T200_PATH = SCENES / "two_pulley_T200.toml"
+T200 = T200_PATH.read_text()
+BENCH_PATH = SCENES / "tensioner_bench_stage2.toml"
+BENCH = BENCH_PATH.read_text()
+SWEEP = (SCENES / "sweeps" / "two_pulley_tension_EI.toml").read_text()
+TOLERANCE = (SCENES / "sweeps" / "two_pulley_tolerance.toml").read_text()
+OPTIMIZE = (SCENES / "optimize" / "tensioner_pivot.toml").read_text()
+TORQUE_ANGLE = (EXAMPLES / "tensioner_torque_angle" / "dataset.toml").read_text()
+TORQUE_ANGLE_CSV = (EXAMPLES / "tensioner_torque_angle" / "torque_angle.csv").read_text()
+IMPULSE = (EXAMPLES / "impulse" / "dataset.toml").read_text()
+IMPULSE_CSV = (EXAMPLES / "impulse" / "tensioner_arm.csv").read_text()
+TENSILE = (EXAMPLES / "tensile_belt_A" / "dataset.toml").read_text()
+SPAN = ["span", "--length", "0.67", "--tension", "100", "--EA", "111190", "--EI", "0.034", "--rhoA", "0.121"]
+PREFIX = "beltjax: error: "
+MAX_COMPILING = 2  # rows allowed to fail only after a JIT compilation (they cost seconds each)
+
+
+def edit(text: str, *changes: tuple[str, str]) -> str:
+    """``text`` with each (old, new) replaced once; the old text must be there (no silent no-op)."""
+    for old, new in changes:
+        assert old in text, f"{old!r} is no longer in the example file"
+        text = text.replace(old, new, 1)
+    return text
+
+
+def write(d: pathlib.Path, name: str, text: str | bytes) -> str:
+    p = d / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    (p.write_bytes if isinstance(text, bytes) else p.write_text)(text)
+    return str(p)
+
+
+def scene(d, *changes, base=T200):
+    return write(d, "scene.toml", edit(base, *changes))
+
+
+def bench(d, *changes):
+    return scene(d, *changes, base=BENCH)
+
+
+def dataset(d, text, **csv):
+    """A dataset.toml with CSV files next to it (file name with '.' written as '_')."""
+    for name, body in csv.items():
+        write(d / "data", name.replace("_csv", ".csv"), body)
+    return write(d / "data", "dataset.toml", text)
+
+
+def modal_dataset(d, scene_path, label="1st transverse", frequency=30.0):
+    return dataset(d, f'[modal]\nparameters = ["belt.EI"]\n\n[[modal.configuration]]\nname = "T200"\n'
+                      f'scene = "{scene_path}"\nmodes = [{{ label = "{label}", frequency_hz = {frequency} }}]\n')
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    id: str
+    input: str  # what is given (for the README table)
+    wrong: str  # what is wrong with it
+    argv: Callable[[pathlib.Path], list[str]]  # tmp_path -> command line (without --out)
+    expect: tuple[str, ...]  # texts the error line must contain (the key or cause)
+    how: str = "main"  # "main": in-process; "script": console script; "module": python -m beltjax.cli
+    compiles: bool = False  # fails only after a JIT compilation
+
+
+def case(id, input, wrong, argv, *expect, how="main", compiles=False):
+    return Case(id, input, wrong, argv, tuple(expect), how, compiles)
+
+
+T2 = str(T200_PATH)
+TB = str(BENCH_PATH)
+CASES = [
+    # ---------------------------------------------------------------- scene files (statics)
+    case("scene-malformed-toml", "`statics`: `EA = 111190.0 N`", "malformed TOML (a unit after the number)",
+         lambda d: ["statics", scene(d, ("EA = 111190.0", "EA = 111190.0 N"))],
+         "malformed TOML", "line 8", how="script"),
+    case("scene-not-found", "`statics no_such_scene.toml`", "nonexistent file",
+         lambda d: ["statics", str(d / "no_such_scene.toml")], "no_such_scene.toml", "scene file not found"),
+    case("scene-empty-file", "`statics` on an empty file", "empty scene file",
+         lambda d: ["statics", write(d, "empty.toml", "")], "belt: missing"),
+    case("scene-directory", "`statics` on a directory", "a directory, not a file",
+         lambda d: ["statics", str(d)], "is a directory"),
+    case("scene-not-utf8", "`statics` on binary bytes", "not a text file",
+         lambda d: ["statics", write(d, "binary.toml", b"\xff\xfe\x00\x01belt")], "not a UTF-8 text file"),
+    case("scene-empty-argument", "`statics \"\"`", "empty file name",
+         lambda d: ["statics", ""], "argument scene: empty file name"),
+    case("scene-string-for-number", "`statics`: `EA = \"111190\"`", "string for a number",
+         lambda d: ["statics", scene(d, ("EA = 111190.0", 'EA = "111190"'))], "belt.EA: expected a number"),
+    case("scene-boolean-for-number", "`statics`: `mass = true`", "boolean for a number",
+         lambda d: ["statics", scene(d, ("mass = 2.1543", "mass = true"))], "pulley[1].mass: expected a number"),
+    case("scene-negative-mass", "`statics`: `mass = -2.1543`", "negative mass",
+         lambda d: ["statics", scene(d, ("mass = 2.1543", "mass = -2.1543"))], "pulley[1].mass: must be >= 0"),
+    case("scene-negative-tension", "`statics`: `static_tension = -200.0`", "negative tension",
+         lambda d: ["statics", scene(d, ("static_tension = 200.0", "static_tension = -200.0"))],
+         "belt.static_tension: must be > 0"),
+    case("scene-nan", "`statics`: `EI = nan`", "NaN", lambda d: ["statics", scene(d, ("EI = 0.034", "EI = nan"))],
+         "belt.EI: must be finite"),
+    case("scene-inf", "`statics`: `radius = inf`", "infinite value",
+         lambda d: ["statics", scene(d, ("radius = 0.0375", "radius = inf"))], "pulley[1].radius: must be finite"),
+    case("scene-nan-in-vector", "`statics`: `center = [0.2232, -nan]`", "NaN in a vector",
+         lambda d: ["statics", scene(d, ("center = [0.2232, 0.135]", "center = [0.2232, -nan]"))],
+         "pulley[1].center: must be finite"),
+    case("scene-vector-as-string", "`statics`: `center = \"0.2232, 0.135\"`", "string for [x, y]",
+         lambda d: ["statics", scene(d, ("center = [0.2232, 0.135]", 'center = "0.2232, 0.135"'))],
+         "pulley[1].center: expected [x, y] (two numbers), got a string"),
+    case("scene-missing-key", "`statics`: no `rhoA`", "missing key",
+         lambda d: ["statics", scene(d, ("rhoA = 0.12101", ""))], "belt.rhoA: missing"),
+    case("scene-missing-table", "`statics`: no `[route]`", "missing table",
+         lambda d: ["statics", write(d, "scene.toml", T200.split("[route]")[0])], "route: missing"),
+    case("scene-tension-and-length", "`statics`: both `static_tension` and `length`", "over-determined belt",
+         lambda d: ["statics", scene(d, ("static_tension = 200.0", "static_tension = 200.0\nlength = 1.79"))],
+         "belt: give exactly one of static_tension and length"),
+    case("scene-overlapping-pulleys", "`statics`: alternator at `[0.80, 0.2]`", "pulleys overlap",
+         lambda d: ["statics", scene(d, ("center = [0.2232, 0.135]", "center = [0.80, 0.2]"))],
+         "pulley[1].center", "overlap"),
+    case("scene-belt-too-short-EA-in-kN", "`statics`: `EA = 111.19` (kN instead of N)",
+         "EA in the wrong unit (no magnitude check of its own: the belt cannot be installed)",
+         lambda d: ["statics", scene(d, ("EA = 111190.0", "EA = 111.19"))],
+         "belt.static_tension", "belt too short to fit", compiles=True),
+    case("scene-slack-belt", "`statics`: `length = 2.5` on fixed centres", "belt longer than its path",
+         lambda d: ["statics", scene(d, ("static_tension = 200.0", "length = 2.5"))],
+         "belt.length", "the belt would be slack"),
+    case("scene-tensioner-cannot-reach", "`statics`: tensioner `arm_length = 0.01`",
+         "the arm is too short to take up the belt at any angle",
+         lambda d: ["statics", bench(d, ("arm_length = 0.094", "arm_length = 0.01"))],
+         "belt.length", "longer than the belt path at every tensioner arm angle", compiles=True),
+    case("scene-idler-overlaps-crank", "`statics`: tensioner `pivot = [0.80, 0.15]`",
+         "idler inside the crank pulley at the given arm angle",
+         lambda d: ["statics", bench(d, ("pivot = [0.64335, 0.0884]", "pivot = [0.80, 0.15]"))],
+         "tensioner.arm_angle_deg", "centre distance"),
+    case("scene-tensioner-cm-beyond-arm", "`statics`: `arm_cm_distance = 0.2` (arm 0.094 m)",
+         "centre of mass beyond the arm",
+         lambda d: ["statics", bench(d, ("pulley_inertia = 0.1806e-3", "pulley_inertia = 0.1806e-3\n"
+                                                                       "arm_cm_distance = 0.2"))],
+         "tensioner.arm_cm_distance: must not exceed arm_length"),
+    case("scene-tensioner-table-missing", "`statics`: `\"tensioner\"` in the route, no `[tensioner]`",
+         "missing table",
+         lambda d: ["statics", write(d, "scene.toml", BENCH.split("[tensioner]")[0] + "[route]"
+                                     + BENCH.split("[route]")[1])],
+         "route.order", "no [tensioner] table"),
+    case("scene-negative-spring", "`statics`: `spring_stiffness = -21.14`", "negative stiffness",
+         lambda d: ["statics", bench(d, ("spring_stiffness = 21.14", "spring_stiffness = -21.14"))],
+         "tensioner.spring_stiffness: must be > 0"),
+    case("out-is-a-file", "`statics scene.toml --out taken` (`taken` is a file)", "output directory is a file",
+         lambda d: ["statics", T2, "--out", write(d, "taken", "x")], "--out: cannot create directory"),
+    # ---------------------------------------------------------------- modal
+    case("modal-huge-mesh", "`modal`: `elements_per_span = 1000000`", "mesh that cannot fit in memory",
+         lambda d: ["modal", scene(d, ("elements_per_span = 16", "elements_per_span = 1000000"))],
+         "model.elements_per_span: must be <= 400"),
+    case("modal-unknown-effect", "`modal`: `effects = [\"transprot\"]`", "misspelt effect",
+         lambda d: ["modal", scene(d, ('effects = ["transport"]', 'effects = ["transprot"]'))],
+         "model.effects: unknown effect 'transprot'"),
+    case("modal-unknown-route-entry", "`modal`: `order = [\"crank\", \"alternater\"]`", "route names no pulley",
+         lambda d: ["modal", scene(d, ('order = ["crank", "alternator"]', 'order = ["crank", "alternater"]'))],
+         "route.order: unknown pulley 'alternater'"),
+    case("modal-speed-with-unit", "`modal`: `speed_rpm = \"1000 rpm\"`", "unit inside a string",
+         lambda d: ["modal", scene(d, ("speed_rpm = 0.0", 'speed_rpm = "1000 rpm"'))],
+         "pulley[0].speed_rpm: expected a number"),
+    case("modal-rpm-inf", "`modal --rpm inf`", "infinite speed", lambda d: ["modal", T2, "--rpm", "inf"],
+         "--rpm must be finite"),
+    case("modal-modes-word", "`modal --modes two`", "word for a number", lambda d: ["modal", T2, "--modes", "two"],
+         "--modes must be a positive integer"),
+    # ---------------------------------------------------------------- campbell
+    case("campbell-rpm-letter", "`campbell --rpm 5:1:x`", "letter in the speed range",
+         lambda d: ["campbell", T2, "--rpm", "5:1:x"], "--rpm must be A:B:STEP with numbers", how="module"),
+    case("campbell-orders-inf", "`campbell --orders 1,2,inf`", "infinite order",
+         lambda d: ["campbell", T2, "--rpm", "0:1000:500", "--orders", "1,2,inf"],
+         "--orders must be positive and finite"),
+    # ---------------------------------------------------------------- simulate
+    case("simulate-negative-t-end", "`simulate --t-end -1`", "negative duration",
+         lambda d: ["simulate", T2, "--t-end", "-1"], "--t-end must be > 0"),
+    case("simulate-dt-above-t-end", "`simulate --t-end 0.01 --dt 0.1`", "step longer than the run",
+         lambda d: ["simulate", T2, "--t-end", "0.01", "--dt", "0.1"], "dt: must be > 0 and below t_end"),
+    case("simulate-too-many-samples", "`simulate --t-end 1e6`", "output would not fit in memory",
+         lambda d: ["simulate", T2, "--t-end", "1e6"], "output samples, at most"),
+    case("simulate-unknown-solver", "`simulate`: `[simulation] solver = \"euler\"`", "unknown solver",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[simulation]\nsolver = "euler"\n'), "--t-end", "0.1"],
+         "simulation.solver: must be one of"),
+    case("simulate-node-out-of-range", "`simulate`: `nodes = [\"crank-alternator:99\"]`", "node beyond the mesh",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[simulation]\nnodes = ["crank-alternator:99"]\n'),
+                    "--t-end", "0.1"], "simulation.nodes"),
+    case("simulate-torque-window", "`simulate`: torque with `t_end_s` before `t_start_s`", "empty time window",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 5.0\n'
+                                      't_start_s = 2.0\nt_end_s = 1.0\n'), "--t-end", "0.1"],
+         "torque[0].t_end_s: must be later than t_start_s"),
+    case("simulate-damping-not-enabled", "`simulate`: `CA = 3.0` without `belt_damping`",
+         "parameter of an effect that is off",
+         lambda d: ["simulate", scene(d, ("rhoA = 0.12101", "rhoA = 0.12101\nCA = 3.0")), "--t-end", "0.1"],
+         'belt.CA: given but "belt_damping" is not in model.effects'),
+    case("simulate-initial-with-unit", "`simulate`: `rotation_deg = { alternator = \"5 deg\" }`",
+         "string for an angle",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[initial]\nrotation_deg = { alternator = "5 deg" }\n'),
+                    "--t-end", "0.1"], "initial.rotation_deg.alternator"),
+    # ---------------------------------------------------------------- span
+    case("span-too-many-elements", "`span ... --elements 10000`", "mesh too fine",
+         lambda d: [*SPAN, "--elements", "10000"], "--elements must be at most 400"),
+    case("span-unknown-bending", "`span ... --bending quadratic`", "unknown choice",
+         lambda d: [*SPAN, "--bending", "quadratic"], "argument --bending: invalid choice"),
+    case("unknown-command", "`simulat scene.toml`", "misspelt command", lambda d: ["simulat", T2],
+         "invalid choice: 'simulat'"),
+    # ---------------------------------------------------------------- fit
+    case("fit-not-found", "`fit no_such_dataset.toml`", "nonexistent file",
+         lambda d: ["fit", str(d / "no_such_dataset.toml")], "dataset file not found"),
+    case("fit-directory", "`fit` on a directory", "a directory, not a file", lambda d: ["fit", str(d)],
+         "is a directory, not a dataset file"),
+    case("fit-malformed-toml", "`fit`: `[torque_angle` (unclosed)", "malformed TOML",
+         lambda d: ["fit", dataset(d, '[torque_angle\nfile = "torque_angle.csv"\n')], "not valid TOML"),
+    case("fit-empty-dataset", "`fit` on an empty dataset.toml", "nothing to fit",
+         lambda d: ["fit", dataset(d, "")], "no section to fit"),
+    case("fit-unknown-section", "`fit`: `[tensil]`", "misspelt section",
+         lambda d: ["fit", dataset(d, "[tensil]\nspecimen_length_m = 0.1463\n")], "tensil: unknown section"),
+    case("fit-empty-csv", "`fit`: empty torque_angle.csv", "empty data file",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv="")], "torque_angle.csv is empty"),
+    case("fit-header-only-csv", "`fit`: torque_angle.csv with the header only", "no data rows",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv="angle_deg,torque_Nm\n")],
+         "torque_angle.csv has 0 data rows"),
+    case("fit-missing-column", "`fit`: torque_angle.csv with `moment_Nm` for `torque_Nm`", "missing column",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE,
+                                   torque_angle_csv=edit(TORQUE_ANGLE_CSV, ("torque_Nm", "moment_Nm")))],
+         "lacks column(s) torque_Nm"),
+    case("fit-nan-in-csv", "`fit`: `nan` in torque_angle.csv", "NaN in the data",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv=edit(TORQUE_ANGLE_CSV, ("75.1026,5.9668",
+                                                                                        "75.1026,nan")))],
+         "torque_angle.csv line 4: NaN or infinite value"),
+    case("fit-unit-in-csv", "`fit`: `5.9668 Nm` in torque_angle.csv", "text in a number cell",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv=edit(TORQUE_ANGLE_CSV, ("75.1026,5.9668",
+                                                                                        "75.1026,5.9668 Nm")))],
+         "torque_angle.csv line 4: not a number"),
+    case("fit-ragged-csv", "`fit`: an impulse CSV row with 3 values", "row longer than the header",
+         lambda d: ["fit", dataset(d, IMPULSE, tensioner_arm_csv=edit(IMPULSE_CSV, ("0.0005,56.44382241",
+                                                                                 "0.0005,56.44382241,3")))],
+         "tensioner_arm.csv line 4: 3 values for 2 columns"),
+    case("fit-csv-not-found", "`fit`: `file = \"torque_angel.csv\"`", "data file missing",
+         lambda d: ["fit", dataset(d, edit(TORQUE_ANGLE, ("torque_angle.csv", "torque_angel.csv")),
+                                   torque_angle_csv=TORQUE_ANGLE_CSV)], "torque_angel.csv", "not found"),
+    case("fit-modes-zero", "`fit`: impulse `modes = 0`", "out of range",
+         lambda d: ["fit", dataset(d, edit(IMPULSE, ("modes = 2", "modes = 0")), tensioner_arm_csv=IMPULSE_CSV)],
+         "impulse.record[0].modes"),
+    case("fit-length-with-unit", "`fit`: `specimen_length_m = \"146 mm\"`", "string for a number",
+         lambda d: ["fit", dataset(d, edit(TENSILE, ("specimen_length_m = 0.1463", 'specimen_length_m = "146 mm"')))],
+         "tensile.specimen_length_m: must be a number"),
+    case("fit-frequency-inf", "`fit`: tensile `frequency_hz = inf`", "infinite value",
+         lambda d: ["fit", dataset(d, edit(TENSILE, ("frequency_hz = 0.01", "frequency_hz = inf")))],
+         "tensile.record[0].frequency_hz: must be finite"),
+    case("fit-modal-bad-label", "`fit`: modal `label = \"first transverse\"`", "unreadable mode label",
+         lambda d: ["fit", modal_dataset(d, T2, label="first transverse")], "modal.configuration[0].modes[0].label"),
+    case("fit-modal-bad-scene", "`fit`: modal configuration whose scene has `EI = nan`", "bad scene inside a dataset",
+         lambda d: ["fit", modal_dataset(d, scene(d, ("EI = 0.034", "EI = nan")))],
+         "modal.configuration[0].scene", "belt.EI: must be finite"),
+    # ---------------------------------------------------------------- sweep
+    case("sweep-not-found", "`sweep scene.toml no_such_sweep.toml`", "nonexistent file",
+         lambda d: ["sweep", T2, str(d / "no_such_sweep.toml")], "sweep file not found"),
+    case("sweep-malformed-toml", "`sweep`: `values = [200, 300` (unclosed)", "malformed TOML",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ("600]", "600")))], "malformed TOML"),
+    case("sweep-empty-file", "`sweep` with an empty sweep file", "nothing to sweep",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", "")], "grid: no sweep axes"),
+    case("sweep-unknown-parameter", "`sweep`: `parameter = \"belt.EJ\"`", "no such parameter",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('"belt.EI"', '"belt.EJ"')))],
+         "grid[1].parameter: belt.EJ"),
+    case("sweep-negative-tension", "`sweep`: `values = [-200, 300]` for belt.static_tension", "negative tension",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ("[200, 300, 400, 500, 600]", "[-200, 300]")))],
+         "grid[0].values: belt.static_tension must be > 0, got -200.0"),
+    case("sweep-nan-value", "`sweep`: `values = [200, nan]`", "NaN",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ("[200, 300, 400, 500, 600]", "[200, nan]")))],
+         "grid[0].values[1]: must be finite"),
+    case("sweep-too-many-cases", "`sweep`: `num = 100000`", "too many cases",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ("num = 4", "num = 100000")))],
+         "more than the limit"),
+    case("sweep-relative-tolerance-percent", "`sweep`: `relative_tolerance = 3` (percent for a fraction)",
+         "wrong unit", lambda d: ["sweep", T2, write(d, "sweep.toml", edit(TOLERANCE, ("relative_tolerance = 0.003",
+                                                                                    "relative_tolerance = 3")))],
+         "random[2].relative_tolerance: must be < 1"),
+    case("sweep-no-tensioner", "`sweep`: `tensioner.arm_length` on a drive without tensioner",
+         "parameter the scene lacks",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('"belt.EI"', '"tensioner.arm_length"')))],
+         "grid[1].parameter: tensioner.arm_length: the scene has no tensioner"),
+    case("sweep-campbell-without-rpm", "`sweep`: `outputs = [\"campbell\"]`, no `rpm`", "missing key",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('["statics", "modal"]', '["campbell"]')))],
+         "rpm: missing"),
+    case("sweep-unknown-backend", "`sweep ... --backend spark`", "unknown choice",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", SWEEP), "--backend", "spark"],
+         "argument --backend: invalid choice"),
+    # ---------------------------------------------------------------- optimize
+    case("optimize-not-found", "`optimize scene.toml no_such_spec.toml`", "nonexistent file",
+         lambda d: ["optimize", TB, str(d / "no_such_spec.toml")], "optimisation file not found"),
+    case("optimize-malformed-toml", "`optimize`: `steps = = 150`", "malformed TOML",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("steps = 150", "steps = = 150")))],
+         "malformed TOML"),
+    case("optimize-steps-zero", "`optimize`: `steps = 0`", "no steps",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("steps = 150", "steps = 0")))],
+         "steps: must be >= 1"),
+    case("optimize-learning-rate-word", "`optimize`: `learning_rate = \"fast\"`", "string for a number",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("learning_rate = 0.02",
+                                                                         'learning_rate = "fast"')))],
+         "learning_rate: expected a finite number"),
+    case("optimize-bounds-swapped", "`optimize`: `lower = 0.70`, `upper = 0.58`", "empty interval",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("lower = 0.58\nupper = 0.70",
+                                                                         "lower = 0.70\nupper = 0.58")))],
+         "variable[0].upper: must be > lower"),
+    case("optimize-start-outside", "`optimize`: `lower = 0.66` (the scene has 0.64335)", "start outside the bounds",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("lower = 0.58", "lower = 0.66")))],
+         "variable[0].parameter", "lies outside [lower, upper]"),
+    case("optimize-unknown-parameter", "`optimize`: `parameter = \"tensioner.pivot.z\"`", "no such parameter",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("tensioner.pivot.x", "tensioner.pivot.z")))],
+         "variable[0].parameter: tensioner.pivot.z"),
+    case("optimize-unknown-kind", "`optimize`: `kind = \"hub_force\"`", "unknown objective",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ('"hub_load"', '"hub_force"')))],
+         "objective[1].kind: unknown value 'hub_force'"),
+    case("optimize-order-inf", "`optimize`: `orders = [inf]`", "infinite order",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("orders = [2.0]", "orders = [inf]")))],
+         "objective[0].orders: expected a non-empty array of positive finite numbers"),
+    case("optimize-huge-mesh", "`optimize`: `elements_per_span = 100000`", "mesh that cannot fit in memory",
+         lambda d: ["optimize", TB, write(d, "opt.toml", "elements_per_span = 100000\n" + OPTIMIZE)],
+         "elements_per_span: must be <= 400"),
+    case("optimize-arm-without-tensioner", "`optimize`: `arm_angle_deg` constraint on the two-pulley drive",
+         "constraint the scene cannot have",
+         lambda d: ["optimize", T2, write(d, "opt.toml", '[[variable]]\nparameter = "pulley.alternator.center.x"\n'
+                                          'lower = 0.2\nupper = 0.3\n\n[[objective]]\nkind = "hub_load"\n'
+                                          'pulley = "alternator"\n\n[[constraint]]\nkind = "arm_angle_deg"\n'
+                                          'min = 30\n')],
+         "constraint[0].kind: the scene has no tensioner"),
+]
+
+
+def _run(c: Case, tmp_path: pathlib.Path, capsys) -> tuple[int, str, pathlib.Path]:
+    """Run a row: (exit status, stderr, output directory)."""
+    out = tmp_path / "out"
+    argv = c.argv(tmp_path)
+    if "--out" not in argv:
+        argv = [*argv, "--out", str(out)]
+    if c.how == "main":
+        code = main(argv)
+        return code, capsys.readouterr().err, out
+    env = {k: v for k, v in os.environ.items() if k != "BELTJAX_DEBUG"}
+    if c.how == "script":
+        exe = shutil.which("beltjax") or str(pathlib.Path(sys.executable).parent / "beltjax")
+        cmd = [exe, *argv]
+    else:
+        cmd = [sys.executable, "-m", "beltjax.cli", *argv]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env, cwd=tmp_path)
+    return proc.returncode, proc.stderr, out
+
+
+@pytest.fixture(autouse=True)
+def _compile_cache(tmp_path_factory, monkeypatch):
+    """The commands' persistent JAX cache goes to a temporary folder, not the user's home."""
+    monkeypatch.setenv("BELTJAX_CACHE", str(tmp_path_factory.getbasetemp() / "jax_cache"))
+    monkeypatch.delenv("BELTJAX_DEBUG", raising=False)
+
+
+@pytest.mark.parametrize("c", CASES, ids=[c.id for c in CASES])
+def test_bad_input_gives_one_line_error(c: Case, tmp_path, capsys):
+    code, err, out = _run(c, tmp_path, capsys)
+    lines = err.rstrip("\n").split("\n")
+    assert code == 2, f"exit status {code}, stderr: {err}"
+    assert len(lines) == 1 and lines[0].strip(), f"expected one line on stderr, got: {err!r}"
+    line = lines[0]
+    assert line.startswith(PREFIX), line
+    assert "Traceback" not in err
+    for text in c.expect:
+        assert text in line, f"{text!r} not in {line!r}"
+    written = [p for p in out.rglob("*") if p.is_file()] if out.is_dir() else []
+    assert not written, f"result files written for bad input: {written}"
+
+
+def test_the_table_is_broad_and_fast(tmp_path):
+    """At least 30 rows, every command covered, at most MAX_COMPILING rows that compile."""
+    assert len(CASES) >= 30
+    assert len({c.id for c in CASES}) == len(CASES)
+    first = {c.argv(tmp_path / c.id)[0] for c in CASES}
+    assert {"statics", "modal", "campbell", "simulate", "span", "fit", "sweep", "optimize"} <= first
+    assert sum(c.compiles for c in CASES) <= MAX_COMPILING
+    assert {c.how for c in CASES} == {"main", "script", "module"}
