@@ -33,7 +33,17 @@ def _single_thread_cpu_pool():
     try:
         _jax.devices("cpu")
     finally:
-        _os.sched_setaffinity(0, cpus)
+        # every thread started meanwhile (XLA's workers) inherited the one-core mask: give all
+        # of them, not only this one, the whole machine back (the pool keeps its one thread)
+        try:
+            tids = [int(t) for t in _os.listdir("/proc/self/task")]
+        except OSError:
+            tids = [0]
+        for tid in tids:
+            try:
+                _os.sched_setaffinity(tid, cpus)
+            except OSError:
+                pass
 
 
 _single_thread_cpu_pool()
