@@ -352,15 +352,26 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     out = modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
     stable = bool(out["stable"])
     n = drive.n_independent(scene)
-    if not stable:
-        lam, _ = modal.gyroscopic_eigen(out["M"], out["G"], out["K"])
-        ok, _, _, unstable = modal.split_gyroscopic(lam, np.zeros((n, lam.shape[0])))
-        if ok:  # only round-off: accept
-            stable = True
-        else:
-            return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st)
     freqs = np.asarray(out["freqs"])
     shapes = np.asarray(out["shapes"])
+    if not stable:
+        # K is not positive definite on the flexible subspace: the companion form decides
+        # there (gyroscopic stabilisation counts as unstable, see beltjax.modal)
+        nr = n_rigid_modes(scene)
+        M, G, K = (np.asarray(out[k]) for k in ("M", "G", "K"))
+        T, rig = np.eye(n), np.zeros((n, 0))
+        if nr:  # the M-orthogonal complement of the rigid mode v0 (numpy: no compilation)
+            v0 = np.asarray(rigid_mode(scene, st.inst))
+            w = M @ v0 / np.linalg.norm(M @ v0)
+            u = w + np.copysign(1.0, w[0]) * np.eye(n)[0]
+            T = (np.eye(n) - 2.0 * np.outer(u, u) / (u @ u))[:, 1:]
+            rig = (v0 / np.max(np.abs(v0)))[:, None]
+        ok, f, Z, unstable = modal.companion_modes(T.T @ M @ T, T.T @ G @ T, T.T @ K @ T)
+        if not ok:
+            return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st)
+        stable = True  # K semi-definite up to round-off (e.g. exactly at a critical speed)
+        freqs = np.concatenate([np.zeros(nr), f])
+        shapes = np.concatenate([rig.astype(complex), T @ Z], axis=1)
     labels, shares = label_modes(freqs, shapes, qi, scene, st.inst, out["J"])
     Vr = np.real(shapes * np.exp(-1j * np.angle(np.sum(shapes**2, axis=0)) / 2))
     Vr = Vr / np.maximum(np.max(np.abs(Vr), axis=0, keepdims=True), 1e-300)

@@ -8,8 +8,18 @@ their reduced matrices (from autodiff) to these functions.
   companion form and a general eigen-solver.
 
 A system is stable when no eigenvalue has a positive real part beyond the
-round-off floor; unstable eigenvalues are returned, frequencies are not
-invented for an unstable system.
+round-off floor and, with G != 0, K is positive definite; unstable eigenvalues
+are returned, frequencies are not invented for an unstable system.
+
+Gyroscopic stabilisation is not stability here.  Past a critical speed K can
+turn indefinite while every eigenvalue of the undamped M, G, K stays imaginary
+(an even number of negative stiffnesses, e.g. two equal spans or a nearly
+bending-free span a little past sqrt(T/rhoA)).  By the Kelvin-Tait-Chetaev
+theorem any damping (belt, bearings: always present) then makes the system
+unstable: the modes of negative energy omega^2 x^H M x + x^H K x grow, at the
+rate -omega^2 x^H D x / E for a damping matrix D.  Those modes are reported as
+the unstable eigenvalues (purely imaginary) and ``stable`` is False, as it is
+in the Cholesky-based routes (:func:`skew_frequencies`).
 """
 
 from __future__ import annotations
@@ -20,6 +30,9 @@ import jax.numpy as jnp
 #: Relative size (to the largest |eigenvalue|) above which a positive real
 #: part (or a negative omega^2) counts as an instability and not round-off.
 STABILITY_RTOL = 1e-7
+#: Relative size (to the largest |omega^2| of K against M) beyond which a negative
+#: stiffness eigenvalue counts as real and not round-off (eigvalsh is accurate to ~1e-15).
+STIFFNESS_RTOL = 1e-12
 
 
 def symmetric_modes(M, K):
@@ -112,8 +125,47 @@ def gyroscopic_modes(M, G, K):
     ok, omega, shapes = _skew_modes(M, G, K)
     if bool(ok):
         return True, np.asarray(omega) / (2 * np.pi), np.asarray(shapes), np.zeros(0, complex)
-    lam, Z = gyroscopic_eigen(M, G, K)
-    return split_gyroscopic(lam, Z)
+    return companion_modes(M, G, K)
+
+
+def stiffness_is_definite(M, K) -> bool:
+    """True when K is positive semi-definite (against M) up to round-off (numpy bool)."""
+    import numpy as np
+
+    M, K = np.asarray(M), np.asarray(K)
+    Lc = np.linalg.cholesky(M)
+    A = np.linalg.solve(Lc, np.linalg.solve(Lc, K).T)
+    omega2 = np.linalg.eigvalsh(0.5 * (A + A.T))
+    return bool(omega2[0] >= -STIFFNESS_RTOL * np.max(np.abs(omega2)))
+
+
+def companion_modes(M, G, K):
+    """Modes of M x'' + G x' + K x = 0 by the companion form and a general eigen-solver.
+
+    Returns ``(stable, freqs_hz, shapes, unstable)`` as :func:`split_gyroscopic`; a spectrum
+    that is imaginary only by gyroscopic stabilisation (K indefinite) is unstable, with
+    its negative-energy modes as the unstable eigenvalues (see the module docstring).
+    """
+    import numpy as np
+
+    M, G, K = np.asarray(M), np.asarray(G), np.asarray(K)
+    n = M.shape[0]
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, G)]])
+    lam, Z = np.linalg.eig(A)  # numpy: no compilation for a fallback route
+    Z = Z[:n, :]
+    stable, freqs, shapes, unstable = split_gyroscopic(lam, Z)
+    if not stable or stiffness_is_definite(M, K):
+        return stable, freqs, shapes, unstable
+    keep = lam.imag > 0
+    lam, Z = lam[keep], Z[:, keep]
+    w2 = lam.imag**2
+    m = np.real(np.einsum("im,ij,jm->m", Z.conj(), M, Z))
+    k = np.real(np.einsum("im,ij,jm->m", Z.conj(), K, Z))
+    energy = (w2 * m + k) / (w2 * m + np.abs(k))  # in [-1, 1]
+    negative = energy < 0
+    if not np.any(negative):  # round-off hid the sign: the least positive energy
+        negative = energy == np.min(energy)
+    return False, np.zeros(0), np.zeros((Z.shape[0], 0)), lam[negative]
 
 
 def is_stable_omega2(omega2):

@@ -143,7 +143,10 @@ class SpanResult:
 
     frequencies_hz: ascending natural frequencies (Hz), empty when unstable;
     labels: e.g. "2nd transverse"; stable: False past the critical speed;
-    unstable_eigenvalues: eigenvalues (1/s) with positive real part;
+    unstable_eigenvalues: eigenvalues (1/s) with positive real part, or, for a span that
+    only gyroscopic coupling holds past a critical speed (stiffness indefinite, every
+    eigenvalue imaginary), those of its negative-energy modes, which any damping makes grow
+    (see :mod:`beltjax.modal`);
     critical_speed_m_s: speed at which the transverse stiffness vanishes;
     mode_shapes: (n_coordinates, n_modes) displacement shapes on all coordinates
     (zeros at fixed ones), real parts of complex gyroscopic modes.

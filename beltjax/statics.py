@@ -173,6 +173,16 @@ def check_installation(scene: Scene, inst: Installation) -> None:
                 f"tensioner arm angle (longest {float(np.max(np.where(ok, path, 0))):.6g} m); it would hang slack",
                 key,
             )
+        t = scene.tensioner
+        if b.length is not None:
+            path0 = float(_arm_terms(jnp.deg2rad(t.spring_preload_deg), scene)[0])
+            if path0 <= float(b.length):  # the arm rests at the spring's free angle, the belt slack
+                raise StaticsError(
+                    f"belt too long to fit: no arm angle where the belt is taut balances the spring, and at "
+                    f"the spring's free angle ({float(t.spring_preload_deg):.4g} deg) the belt path "
+                    f"{path0:.6g} m is shorter than the belt ({float(b.length):.6g} m); it would hang slack",
+                    key,
+                )
         raise StaticsError(
             "no tensioner arm angle balances the spring against the belt (belt too short, or the "
             "spring too weak, for this layout); check the belt, spring_preload_deg and spring_stiffness",
