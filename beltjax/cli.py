@@ -134,7 +134,8 @@ def span_table(result, n_rows: int = 12) -> str:
             f"rhoA = {float(r.section.rhoA):g} kg/m, {r.n_elements} elements ({r.bending} bending)")
     lines = [head, f"critical speed {r.critical_speed_m_s:.2f} m/s; " + ("stable" if r.stable else "UNSTABLE")]
     if not r.stable:
-        lines.append("past the critical speed the span diverges; unstable eigenvalues [1/s]:")
+        lines.append("past the critical speed the span is unstable (it diverges, or is held only by gyroscopic "
+                     "coupling, which any damping destroys); unstable eigenvalues [1/s]:")
         lines += [f"  {lam.real:+.4g} {lam.imag:+.4g}j" for lam in r.unstable_eigenvalues]
         return "\n".join(lines)
     show_formula = r.speed == 0.0 and r.bc == ("pinned", "pinned")
