@@ -544,15 +544,32 @@ def transport_speed(scene: Scene, inst: Installation, speed):
     return speed / inst.stretch
 
 
-def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None):
+def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, rigid_only=False):
     """Full coordinates and what the reduced equations need of them, at (q_i, q_i', t).
 
     Returns (q, v, gamma, J, F): q = Phi(q_i, t) and its rate v; gamma = d(J q_i')/dt at
     q_i'' = 0 (with the time terms of Phi); J = dPhi/dq_i; the forces F of
     :func:`full_forces`.  speed: belt speed (m/s) when ``t`` is None (steady motion, the
     map without time); with a time t (s) the belt speed and its rate follow
-    :func:`belt_travel` and the damping effects and loads act.
+    :func:`belt_travel` and the damping effects and loads act.  rigid_only: J holds only
+    the columns of the rigid coordinates, ``J[:, :n_rigid]`` (the span columns are the
+    constant selection of :func:`span_coordinate_index`).
     """
+    if rigid_only:
+        nr = n_rigid(scene)
+        q, v, gamma, _, F = _full_motion(qi, qi_dot, scene, inst, speed, t, skip_jacobian=True)
+        steady = t is None
+        tt = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
+        rest = qi[nr:]
+
+        def phi_r(xr):
+            return full_coordinates(jnp.concatenate([xr, rest]), scene, inst, t=None if steady else tt)
+
+        return q, v, gamma, jax.jacfwd(phi_r)(qi[:nr]), F
+    return _full_motion(qi, qi_dot, scene, inst, speed, t)
+
+
+def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, skip_jacobian=False):
     steady = t is None
     t = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
     one = jnp.zeros_like(t) if steady else jnp.ones_like(t)  # the time's tangent
@@ -560,7 +577,7 @@ def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None)
     rate = lambda x, tt: jax.jvp(phi, (x, tt), (qi_dot, one))[1]  # noqa: E731
     q, v = jax.jvp(phi, (qi, t), (qi_dot, one))
     _, gamma = jax.jvp(rate, (qi, t), (qi_dot, one))
-    J = jax.jacfwd(phi)(qi, t)
+    J = None if skip_jacobian else jax.jacfwd(phi)(qi, t)
     if steady:
         F = full_forces(q, v, scene, inst, transport_speed(scene, inst, speed))
     else:
@@ -580,6 +597,81 @@ def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_fu
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
     _, _, gamma, J, F = full_motion(qi, qi_dot, scene, inst, speed, t)
     return J.T @ M @ J, J.T @ (F - M @ gamma)
+
+
+def span_coordinate_index(scene: Scene) -> np.ndarray:
+    """Position in the full vector q of each span coordinate of q_i (q_i order after the rigid ones).
+
+    :func:`full_coordinates` copies the span coordinates of q_i (end slopes, interior nodes)
+    into q unchanged, so ``dPhi/dq_i`` is, on these columns, the constant selection
+    ``J[idx[k], n_rigid + k] = 1`` (zero elsewhere), whatever q_i and t.  Empty for the
+    rotational model.
+    """
+    if not flexible(scene):
+        return np.zeros(0, dtype=int)
+    n = len(scene.route.order)
+    N = scene.model.elements_per_span
+    local = np.r_[2 : 4 * N, 4 * N + 2 : 4 * N + 4]  # slopes of node 0, nodes 1..N-1, slopes of node N
+    return (np.arange(n)[:, None] * 4 * (N + 1) + local[None, :]).reshape(-1)
+
+
+class ReducedMass(NamedTuple):
+    """What the structured solve of :func:`reduced_accelerations` keeps of a drive (per run).
+
+    M_full: full mass matrix; M_s = M_full[idx] (rows of the span coordinates); chol: Cholesky
+    factor (lower) of the constant span block M_ss = M_full[idx][:, idx] (None without spans).
+    """
+
+    M_full: jax.Array
+    M_s: jax.Array | None
+    chol: jax.Array | None
+
+
+def reduced_mass(scene: Scene, inst: Installation, M_full=None) -> ReducedMass:
+    """The constant parts of M_ii = J^T M J for :func:`reduced_accelerations` (factor once per run)."""
+    M = full_mass_matrix(scene, inst) if M_full is None else M_full
+    idx = span_coordinate_index(scene)
+    if idx.size == 0:
+        return ReducedMass(M, None, None)
+    M_s = M[idx]
+    return ReducedMass(M, M_s, jnp.linalg.cholesky(M_s[:, idx]))
+
+
+def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
+    """q_i'' = M_ii^-1 F_ii of :func:`reduced_system`, by the block structure of J (rad/s^2, m/s^2).
+
+    J = [J_r | S]: the rigid columns J_r (autodiff, n_rigid tangents) and the constant
+    selection S of the span coordinates (:func:`span_coordinate_index`).  Hence
+    M_ii = [[J_r^T M J_r, J_r^T M S], [S^T M J_r, M_ss]] with the constant span block
+    M_ss factored once (``rm``, :func:`reduced_mass`), F_ii = [J_r^T r, r[idx]] with
+    r = F - M gamma, and the solve is by the Schur complement on the rigid coordinates:
+    O(n^2) per call instead of forming J^T M J (O(n_full^2 n)) and an LU (O(n^3)).  Same
+    equations as ``jnp.linalg.solve(*reduced_system(...))`` to round-off.
+    """
+    nr = n_rigid(scene)
+    idx = span_coordinate_index(scene)
+    M = rm.M_full
+    _, _, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
+    r = F - M @ gamma
+    F_r = J_r.T @ r
+    MJ_r = M @ J_r
+    M_rr = J_r.T @ MJ_r
+    if idx.size == 0:
+        return _small_spd_solve(M_rr, F_r)
+    F_s = r[idx]
+    M_sr = rm.M_s @ J_r  # (n_span, n_rigid)
+    X = jax.scipy.linalg.cho_solve((rm.chol, True), jnp.concatenate([M_sr, F_s[:, None]], axis=1))
+    if nr == 0:
+        return X[:, 0]
+    S_c = M_rr - M_sr.T @ X[:, :nr]
+    b = F_r - M_sr.T @ X[:, nr]
+    a_r = _small_spd_solve(S_c, b)
+    return jnp.concatenate([a_r, X[:, nr] - X[:, :nr] @ a_r])
+
+
+def _small_spd_solve(A, b):
+    """A^-1 b for a small symmetric positive definite A (a mass matrix of the rigid coordinates)."""
+    return jnp.linalg.solve(A, b)
 
 
 def _travel_rates(scene: Scene, t):

@@ -147,14 +147,13 @@ def initial_state(scene: Scene):
 
 def vector_field(scene: Scene, inst):
     """f(t, y, args) of y = (q_i, q_i') for diffrax.ODETerm (m, rad, m/s, rad/s per s)."""
-    M_full = drive.full_mass_matrix(scene, inst)
+    rm = drive.reduced_mass(scene, inst)  # the constant span block of M_ii, factored once
     n = drive.n_independent(scene)
 
     def f(t, y, args):
         del args
         qi, qd = y[:n], y[n:]
-        M, F = drive.reduced_system(qi, qd, scene, inst, M_full=M_full, t=t)
-        return jnp.concatenate([qd, jnp.linalg.solve(M, F)])
+        return jnp.concatenate([qd, drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t)])
 
     return f
 
