@@ -114,7 +114,7 @@ import numpy as np
 import optax
 
 from beltjax import drive, drive_modal, parameters, statics
-from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, loads_scene
+from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, _describe, loads_scene
 
 #: temperature (Hz) of the log-sum-exp maximum over the sampled speeds
 SOFT_HZ = 0.5
@@ -213,18 +213,6 @@ class Problem:
     def scales(self) -> np.ndarray:
         """Scale of each variable (file units)."""
         return np.array([v.scale for v in self.variables])
-
-
-def _describe(v) -> str:
-    if isinstance(v, bool):
-        return f"a boolean ({str(v).lower()})"
-    if isinstance(v, str):
-        return f"a string ({v!r})"
-    if isinstance(v, dict):
-        return "a table"
-    if isinstance(v, list):
-        return "an array"
-    return f"{type(v).__name__} ({v!r})"
 
 
 class _Table:
