@@ -148,7 +148,9 @@ def time_interleaved(fns: dict, rounds: int = 21, min_sample_s: float = 2e-3, ma
 
     Like ``time_steady`` but one sample of each function per round, so a
     transient load on the machine hits all of them alike (fair ratios).
-    Returns {name: stats}.
+    Returns {name: stats}; the stats also hold the process CPU time per call
+    (``cpu_median_s``, ``cpu_min_s``: ``time.process_time``, every thread of this
+    process), which other processes on a shared machine do not inflate.
     """
     numbers = {}
     for name, fn in fns.items():
@@ -157,19 +159,22 @@ def time_interleaved(fns: dict, rounds: int = 21, min_sample_s: float = 2e-3, ma
         block(fn())
         numbers[name] = max(1, int(math.ceil(min_sample_s / max(time.perf_counter() - t0, 1e-7))))
     samples = {name: [] for name in fns}
+    cpu = {name: [] for name in fns}
     start = time.perf_counter()
     for r in range(rounds):
         for name, fn in fns.items():
             n = numbers[name]
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             for _ in range(n):
                 block(fn())
             samples[name].append((time.perf_counter() - t0) / n)
+            cpu[name].append((time.process_time() - c0) / n)
         if r >= 4 and time.perf_counter() - start > max_total_s:
             break
     return {
         name: {"median_s": statistics.median(s), "min_s": min(s), "max_s": max(s), "samples": len(s),
-               "calls_per_sample": numbers[name]}
+               "calls_per_sample": numbers[name], "cpu_median_s": statistics.median(cpu[name]),
+               "cpu_min_s": min(cpu[name])}
         for name, s in samples.items()
     }
 

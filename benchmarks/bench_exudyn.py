@@ -88,8 +88,6 @@ from __future__ import annotations
 import _common  # noqa: F401  (sets OPENBLAS_NUM_THREADS before numpy/jax)
 
 import json
-import math
-import statistics
 import sys
 import time
 import warnings
@@ -98,7 +96,8 @@ from pathlib import Path
 
 import numpy as np
 
-from _common import HERE, block, fmt_time, machine_info, machine_line, save_json, table, time_compile, time_first_call
+from _common import (HERE, block, fmt_time, machine_info, machine_line, save_json, table, time_compile,
+                     time_first_call, time_interleaved)
 
 FIGURES = HERE / "figures"
 REFERENCE = HERE.parents[1] / "shared" / "reference" / "thesis_reference.json"
@@ -451,37 +450,16 @@ def bj_batched_fns():
 
 
 def time_both(fns: dict, rounds: int = 15, min_sample_s: float = 5e-3, max_total_s: float = 3.0) -> dict:
-    """Per-call wall and CPU times of zero-argument functions, sampled round-robin after a warm-up call.
-
-    Like ``_common.time_interleaved`` (each sample = ``number`` back-to-back blocked calls lasting at
-    least ``min_sample_s``; one sample of each function per round), plus the process CPU time
-    (``time.process_time``: all threads of this process, JAX's worker threads included) of each sample.
-    On the shared 2-core machine the wall time of a sample includes the time other processes hold
-    the cores; the CPU time does not, and is the stable measure of the work done.  Returns
-    {name: {wall_min_s, wall_median_s, cpu_min_s, cpu_median_s, samples, calls_per_sample}}.
+    """Per-call wall and CPU times of zero-argument functions, sampled round-robin after a warm-up call
+    (:func:`_common.time_interleaved`).  On the shared 2-core machine the wall time of a sample includes
+    the time other processes hold the cores; the CPU time (``time.process_time``: all threads of this
+    process, JAX's worker threads included) does not, and is the stable measure of the work done.
+    Returns {name: {wall_min_s, wall_median_s, cpu_min_s, cpu_median_s, samples, calls_per_sample}}.
     """
-    numbers = {}
-    for name, fn in fns.items():
-        block(fn())
-        t0 = time.perf_counter()
-        block(fn())
-        numbers[name] = max(1, int(math.ceil(min_sample_s / max(time.perf_counter() - t0, 1e-7))))
-    wall = {k: [] for k in fns}
-    cpu = {k: [] for k in fns}
-    start = time.perf_counter()
-    for r in range(rounds):
-        for name, fn in fns.items():
-            n = numbers[name]
-            w0, c0 = time.perf_counter(), time.process_time()
-            for _ in range(n):
-                block(fn())
-            wall[name].append((time.perf_counter() - w0) / n)
-            cpu[name].append((time.process_time() - c0) / n)
-        if r >= 4 and time.perf_counter() - start > max_total_s:
-            break
-    return {k: dict(wall_min_s=min(wall[k]), wall_median_s=statistics.median(wall[k]), cpu_min_s=min(cpu[k]),
-                    cpu_median_s=statistics.median(cpu[k]), samples=len(wall[k]), calls_per_sample=numbers[k])
-            for k in fns}
+    tm = time_interleaved(fns, rounds=rounds, min_sample_s=min_sample_s, max_total_s=max_total_s)
+    return {k: dict(wall_min_s=v["min_s"], wall_median_s=v["median_s"], cpu_min_s=v["cpu_min_s"],
+                    cpu_median_s=v["cpu_median_s"], samples=v["samples"], calls_per_sample=v["calls_per_sample"])
+            for k, v in tm.items()}
 
 
 def timed(fn):
