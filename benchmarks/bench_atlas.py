@@ -1040,47 +1040,24 @@ def main():
     except Exception:  # noqa: BLE001
         results["working_tree_changes"] = None
     log(f"library files changed vs the commit: {results['working_tree_changes']}")
-    mesh = trans = fid = eff = None
-    if "mesh" in ns.parts:
-        log("== (1) elements per span on the whole drives")
+    parts = {  # name: (heading, run, tables)
+        "mesh": ("(1) elements per span on the whole drives", lambda: part_mesh(ns.quick, ref), mesh_tables),
+        "transient": ("(2) transient solvers (results/transient.json, spot check)",
+                      lambda: part_transient(ns.quick), transient_tables),
+        "fidelity": ("(3) rotational vs hybrid", lambda: part_fidelity(ns.quick), fidelity_tables),
+        "effects": ("(4) effects vs compiled cost", lambda: part_effects(ns.quick), effects_tables),
+    }
+    for name, (heading, run, make_tables) in parts.items():
+        if name not in ns.parts:
+            continue
+        log(f"== {heading}")
         t0 = time.perf_counter()
-        mesh = part_mesh(ns.quick, ref)
-        elapsed["mesh"] = time.perf_counter() - t0
-        tm = mesh_tables(mesh)
-        for t in tm:
+        results[name] = run()
+        elapsed[name] = time.perf_counter() - t0
+        for t in make_tables(results[name]):
             log(t + "\n")
-        tables += tm
-        results["mesh"] = mesh
-    if "transient" in ns.parts:
-        log("== (2) transient solvers (results/transient.json, spot check)")
-        t0 = time.perf_counter()
-        trans = part_transient(ns.quick)
-        elapsed["transient"] = time.perf_counter() - t0
-        tt = transient_tables(trans)
-        for t in tt:
-            log(t + "\n")
-        tables += tt
-        results["transient"] = trans
-    if "fidelity" in ns.parts:
-        log("== (3) rotational vs hybrid")
-        t0 = time.perf_counter()
-        fid = part_fidelity(ns.quick)
-        elapsed["fidelity"] = time.perf_counter() - t0
-        tf = fidelity_tables(fid)
-        for t in tf:
-            log(t + "\n")
-        tables += tf
-        results["fidelity"] = fid
-    if "effects" in ns.parts:
-        log("== (4) effects vs compiled cost")
-        t0 = time.perf_counter()
-        eff = part_effects(ns.quick)
-        elapsed["effects"] = time.perf_counter() - t0
-        te = effects_tables(eff)
-        for t in te:
-            log(t + "\n")
-        tables += te
-        results["effects"] = eff
+            tables.append(t)
+    mesh, trans, fid, eff = (results.get(k) for k in ("mesh", "transient", "fidelity", "effects"))
     paths = figures(mesh, trans, fid, eff)
     elapsed["total"] = time.perf_counter() - t_all
     results["elapsed_s"] = elapsed
