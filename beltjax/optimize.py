@@ -113,8 +113,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from beltjax import drive, drive_modal, parameters, statics
-from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, _describe, loads_scene
+from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, loads_scene
+from beltjax.tomltable import describe
 
 #: temperature (Hz) of the log-sum-exp maximum over the sampled speeds
 SOFT_HZ = 0.5
@@ -215,72 +216,17 @@ class Problem:
         return np.array([v.scale for v in self.variables])
 
 
-class _Table:
-    """A TOML table of the optimisation file: unknown keys, typed getters (one-line errors)."""
+def _raise(path: str, msg: str):
+    raise OptimizeError(msg, path)
 
-    def __init__(self, data, key: str, allowed):
-        if not isinstance(data, dict):
-            raise OptimizeError(f"expected a table, got {_describe(data)}", key or "file")
-        for k in data:
-            if k not in allowed:
-                raise OptimizeError(f"unknown key (allowed: {', '.join(allowed)})", self._path(key, k))
-        self.data, self.key = data, key
 
-    @staticmethod
-    def _path(key, k):
-        return f"{key}.{k}" if key else k
-
-    def fail(self, k, msg):
-        raise OptimizeError(msg, self._path(self.key, k))
-
-    def number(self, k, default=None, *, required=False, positive=False, nonnegative=False):
-        if k not in self.data:
-            if required:
-                self.fail(k, "missing (required key)")
-            return default
-        v = self.data[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            self.fail(k, f"expected a finite number, got {_describe(v)}")
-        if positive and v <= 0:
-            self.fail(k, f"must be > 0, got {v!r}")
-        if nonnegative and v < 0:
-            self.fail(k, f"must be >= 0, got {v!r}")
-        return float(v)
-
-    def integer(self, k, default=None, *, minimum=None, maximum=None):
-        if k not in self.data:
-            return default
-        v = self.data[k]
-        if isinstance(v, bool) or not isinstance(v, int):
-            self.fail(k, f"expected an integer, got {_describe(v)}")
-        if minimum is not None and v < minimum:
-            self.fail(k, f"must be >= {minimum}, got {v!r}")
-        if maximum is not None and v > maximum:
-            self.fail(k, f"must be <= {maximum}, got {v!r}")
-        return int(v)
-
-    def string(self, k, default=None, *, required=False, choices=None):
-        if k not in self.data:
-            if required:
-                self.fail(k, "missing (required key)" + (f"; one of {', '.join(choices)}" if choices else ""))
-            return default
-        v = self.data[k]
-        if not isinstance(v, str):
-            self.fail(k, f"expected a string, got {_describe(v)}")
-        if choices is not None and v not in choices:
-            self.fail(k, f"unknown value {v!r}; choose one of {', '.join(choices)}")
-        return v
-
-    def tables(self, k) -> list:
-        v = self.data.get(k, [])
-        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
-            self.fail(k, f"expected an array of tables [[{k}]], got {_describe(v)}")
-        return v
+#: the optimisation file's reader: OptimizeError, its own wording of a few messages
+_READ = tomltable.Reader(_raise, tomltable.Style(unknown_where=False, finite=True, choose=True, top="file"))
 
 
 def _parse_variable(d, i: int, scene: Scene) -> Variable:
     key = f"variable[{i}]"
-    t = _Table(d, key, _VARIABLE_KEYS)
+    t = _READ.table(d, key, _VARIABLE_KEYS)
     path = t.string("parameter", required=True)
     try:
         parameters.check(scene, path)
@@ -290,7 +236,7 @@ def _parse_variable(d, i: int, scene: Scene) -> Variable:
     hi = t.number("upper", required=True)
     if not lo < hi:
         t.fail("upper", f"must be > lower = {lo!r}, got {hi!r}")
-    scale = t.number("scale", hi - lo, positive=True)
+    scale = t.number("scale", required=False, default=hi - lo, positive=True)
     x0 = float(parameters.get_value(scene, path))
     if not math.isfinite(x0):
         t.fail("parameter", f"{path} is not given in the scene (it is solved for); "
@@ -300,7 +246,7 @@ def _parse_variable(d, i: int, scene: Scene) -> Variable:
     return Variable(path, lo, hi, scale)
 
 
-def _route_entry(t: _Table, k: str, scene: Scene, required: bool) -> str | None:
+def _route_entry(t: tomltable.Table, k: str, scene: Scene, required: bool) -> str | None:
     name = t.string(k, required=required)
     if name is not None and name not in scene.route.order:
         t.fail(k, f"unknown pulley {name!r}; route entries: {', '.join(scene.route.order)}")
@@ -310,62 +256,63 @@ def _route_entry(t: _Table, k: str, scene: Scene, required: bool) -> str | None:
 def _kind(d, key: str, choices) -> str:
     """The ``kind`` of an objective or constraint table (checked before its other keys)."""
     if not isinstance(d, dict):
-        raise OptimizeError(f"expected a table, got {_describe(d)}", key)
+        raise OptimizeError(f"expected a table, got {describe(d)}", key)
     only = {k: d[k] for k in ("kind",) if k in d}
-    return _Table(only, key, ("kind",)).string("kind", required=True, choices=choices)
+    return _READ.table(only, key, ("kind",)).string("kind", required=True, choices=choices)
 
 
 def _parse_objective(d, i: int, scene: Scene) -> Objective:
     key = f"objective[{i}]"
     kind = _kind(d, key, OBJECTIVES)
-    t = _Table(d, key, _OBJECTIVE_KEYS[kind])
-    weight = t.number("weight", 1.0, nonnegative=True)
+    t = _READ.table(d, key, _OBJECTIVE_KEYS[kind])
+    weight = t.number("weight", required=False, default=1.0, nonnegative=True)
     if kind == "hub_load":
         return Objective(kind, weight, pulley=_route_entry(t, "pulley", scene, True))
     orders = d.get("orders")
     if (not isinstance(orders, list) or not orders
             or any(isinstance(k, bool) or not isinstance(k, (int, float)) or not 0 < k < math.inf for k in orders)):
-        got = (_describe(orders) if not isinstance(orders, list) else repr(orders)) if orders is not None else "nothing"
+        got = (describe(orders) if not isinstance(orders, list) else repr(orders)) if orders is not None else "nothing"
         t.fail("orders", f"expected a non-empty array of positive finite numbers, got {got}")
     rpm = d.get("rpm")
     if (not isinstance(rpm, list) or len(rpm) != 2
             or any(isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) for r in rpm)):
-        got = _describe(rpm) if rpm is not None else "nothing"
+        got = describe(rpm) if rpm is not None else "nothing"
         t.fail("rpm", f"expected [lower, upper] speeds of the drive pulley (rpm), got {got}")
     if not 0 <= rpm[0] < rpm[1]:
         t.fail("rpm", f"need 0 <= lower < upper, got {rpm!r}")
     modes = d.get("modes", "span")
     if isinstance(modes, bool) or not (modes in ("span", "all") or (isinstance(modes, int) and modes >= 1)):
-        t.fail("modes", f"expected \"span\", \"all\" or a number of lowest modes >= 1, got {_describe(modes)}")
+        t.fail("modes", f"expected \"span\", \"all\" or a number of lowest modes >= 1, got {describe(modes)}")
     return Objective(
         kind, weight, orders=tuple(float(k) for k in orders), rpm=(float(rpm[0]), float(rpm[1])), modes=modes,
-        margin_hz=t.number("margin_hz", 2.0, nonnegative=True), speeds=t.integer("speeds", 9, minimum=2, maximum=64),
+        margin_hz=t.number("margin_hz", required=False, default=2.0, nonnegative=True),
+        speeds=t.integer("speeds", required=False, default=9, minimum=2, maximum=64),
     )
 
 
 def _parse_constraint(d, i: int, scene: Scene) -> Constraint:
     key = f"constraint[{i}]"
     kind = _kind(d, key, CONSTRAINTS)
-    t = _Table(d, key, _CONSTRAINT_KEYS[kind])
-    weight = t.number("weight", 100.0, nonnegative=True)
-    tol = t.number("tolerance", _TOLERANCE[kind], nonnegative=True)
+    t = _READ.table(d, key, _CONSTRAINT_KEYS[kind])
+    weight = t.number("weight", required=False, default=100.0, nonnegative=True)
+    tol = t.number("tolerance", required=False, default=_TOLERANCE[kind], nonnegative=True)
     if kind == "min_wrap_deg":
         value = t.number("value", required=True)
         if not 0 < value < 360:
             t.fail("value", f"must lie in (0, 360) deg, got {value!r}")
         return Constraint(kind, value, None, weight, tol, _route_entry(t, "pulley", scene, False))
     if kind == "no_overlap":
-        return Constraint(kind, t.number("clearance", 0.0, nonnegative=True), None, weight, tol)
+        return Constraint(kind, t.number("clearance", required=False, default=0.0, nonnegative=True), None, weight, tol)
     if kind == "arm_angle_deg" and scene.tensioner is None:
         t.fail("kind", "the scene has no tensioner")
-    lo, hi = t.number("min"), t.number("max")
+    lo, hi = t.number("min", required=False), t.number("max", required=False)
     if lo is None and hi is None:
         t.fail("min", "give min, max or both")
     if lo is not None and hi is not None and not lo < hi:
         t.fail("max", f"must be > min = {lo!r}, got {hi!r}")
     span = None
     if kind == "static_tension":
-        span = t.string("span")
+        span = t.string("span", required=False)
         if span is not None and span not in scene.route.span_names:
             t.fail("span", f"unknown span {span!r}; spans: {', '.join(scene.route.span_names)}")
     return Constraint(kind, lo, hi, weight, tol, span)
@@ -378,7 +325,7 @@ def parse(spec: dict, scene: Scene) -> Problem:
     bounds, a parameter path the scene lacks, a start outside the bounds, no variables or
     no objectives, steps < 1 and the like.
     """
-    t = _Table(spec, "", _TOP_KEYS)
+    t = _READ.table(spec, "", _TOP_KEYS)
     variables = tuple(_parse_variable(d, i, scene) for i, d in enumerate(t.tables("variable")))
     if not variables:
         raise OptimizeError("at least one [[variable]] is required", "variable")
@@ -394,12 +341,12 @@ def parse(spec: dict, scene: Scene) -> Problem:
         variables=variables,
         objectives=objectives,
         constraints=constraints,
-        steps=t.integer("steps", 150, minimum=1),
-        learning_rate=t.number("learning_rate", 0.01, positive=True),
-        tolerance=t.number("tolerance", 1e-4, nonnegative=True),
-        patience=t.integer("patience", 30, minimum=1),
-        elements_per_span=t.integer("elements_per_span", None, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN),
-        description=t.string("description", ""),
+        steps=t.integer("steps", required=False, default=150, minimum=1),
+        learning_rate=t.number("learning_rate", required=False, default=0.01, positive=True),
+        tolerance=t.number("tolerance", required=False, default=1e-4, nonnegative=True),
+        patience=t.integer("patience", required=False, default=30, minimum=1),
+        elements_per_span=t.integer("elements_per_span", required=False, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN),
+        description=t.string("description", required=False, default=""),
     )
 
 

@@ -62,6 +62,7 @@ stiffnesses...), names and switches are static fields.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import tomllib
@@ -72,8 +73,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import geometry
+from beltjax import geometry, tomltable
 from beltjax.ancf import BENDING_MODELS
+from beltjax.tomltable import describe
 
 #: effects a scene may ask for in ``model.effects`` (only listed ones are simulated)
 EFFECTS = (
@@ -320,122 +322,9 @@ def _fail(key, msg, source=""):
     raise SceneError(f"{key}: {msg}", key, source)
 
 
-def _describe(v) -> str:
-    if isinstance(v, bool):
-        return f"a boolean ({str(v).lower()})"
-    if isinstance(v, str):
-        return f"a string ({v!r})"
-    if isinstance(v, dict):
-        return "a table"
-    if isinstance(v, list):
-        return "an array"
-    return f"{type(v).__name__} ({v!r})"
-
-
-class _Table:
-    """A TOML table being read: typed getters, then a check for unknown keys."""
-
-    def __init__(self, data, key: str, source: str, allowed: tuple[str, ...]):
-        if not isinstance(data, dict):
-            _fail(key, f"expected a table, got {_describe(data)}", source)
-        self.data, self.key, self.source, self.allowed = data, key, source, allowed
-        for k in data:
-            if k not in allowed:
-                where = f"in {key}" if key else "at the top level"
-                _fail(self.path(k), f"unknown key (allowed {where}: {', '.join(allowed)})", source)
-
-    def path(self, k):
-        return f"{self.key}.{k}" if self.key else k
-
-    def fail(self, k, msg):
-        _fail(self.path(k), msg, self.source)
-
-    def has(self, k):
-        return k in self.data
-
-    def raw(self, k, required):
-        if k not in self.data:
-            if required:
-                self.fail(k, "missing (required key)")
-            return None
-        return self.data[k]
-
-    def _check_number(self, k, v, what="a number"):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(k, f"expected {what}, got {_describe(v)}")
-        if not math.isfinite(v):
-            self.fail(k, f"must be finite, got {v!r}")
-        return float(v)
-
-    def number(self, k, *, required=True, default=None, positive=False, nonnegative=False):
-        v = self.raw(k, required)
-        if v is None:
-            return default
-        x = self._check_number(k, v)
-        if positive and not x > 0:
-            self.fail(k, f"must be > 0, got {v!r}")
-        if nonnegative and not x >= 0:
-            self.fail(k, f"must be >= 0, got {v!r}")
-        return x
-
-    def integer(self, k, *, required=True, default=None, minimum=None, maximum=None):
-        v = self.raw(k, required)
-        if v is None:
-            return default
-        if isinstance(v, bool) or not isinstance(v, int):
-            self.fail(k, f"expected an integer, got {_describe(v)}")
-        if minimum is not None and v < minimum:
-            self.fail(k, f"must be >= {minimum}, got {v!r}")
-        if maximum is not None and v > maximum:
-            self.fail(k, f"must be <= {maximum}, got {v!r}")
-        return v
-
-    def vector2(self, k, *, required=True, default=None):
-        v = self.raw(k, required)
-        if v is None:
-            return default
-        if not isinstance(v, list) or len(v) != 2:
-            self.fail(k, f"expected [x, y] (two numbers), got {_describe(v) if not isinstance(v, list) else repr(v)}")
-        for i, x in enumerate(v):
-            if isinstance(x, bool) or not isinstance(x, (int, float)):
-                self.fail(k, f"expected [x, y] (two numbers), element {i} is {_describe(x)}")
-            if not math.isfinite(x):
-                self.fail(k, f"must be finite, got {v!r}")
-        return [float(x) for x in v]
-
-    def boolean(self, k, *, required=False, default=False):
-        v = self.raw(k, required)
-        if v is None:
-            return default
-        if not isinstance(v, bool):
-            self.fail(k, f"expected true or false, got {_describe(v)}")
-        return v
-
-    def string(self, k, *, required=True, default=None, choices=None):
-        v = self.raw(k, required)
-        if v is None:
-            return default
-        if not isinstance(v, str):
-            self.fail(k, f"expected a string, got {_describe(v)}")
-        if choices is not None and v not in choices:
-            self.fail(k, f"must be one of {', '.join(repr(c) for c in choices)}, got {v!r}")
-        return v
-
-    def strings(self, k, *, required=True, default=None):
-        v = self.raw(k, required)
-        if v is None:
-            return default
-        if not isinstance(v, list):
-            self.fail(k, f"expected an array of strings, got {_describe(v)}")
-        for i, x in enumerate(v):
-            if not isinstance(x, str):
-                self.fail(k, f"expected an array of strings, element {i} is {_describe(x)}")
-        seen = set()
-        for x in v:
-            if x in seen:
-                self.fail(k, f"{x!r} appears twice")
-            seen.add(x)
-        return list(v)
+def _table(data, key: str, source: str, allowed: tuple[str, ...]) -> tomltable.Table:
+    """A scene table being read (errors: :class:`SceneError` naming ``source``)."""
+    return tomltable.Reader(functools.partial(_fail, source=source)).table(data, key, allowed)
 
 
 def _arr(x):
@@ -495,7 +384,7 @@ _MODEL_KEYS = ("fidelity", "elements_per_span", "effects", "bending")
 
 
 def _parse_belt(data, source) -> Belt:
-    t = _Table(data, "belt", source, _BELT_KEYS)
+    t = _table(data, "belt", source, _BELT_KEYS)
     EA = t.number("EA", positive=True)
     EI = t.number("EI", nonnegative=True)
     rhoA = t.number("rhoA", positive=True)
@@ -508,7 +397,7 @@ def _parse_belt(data, source) -> Belt:
 
 
 def _parse_pulley(data, i, source) -> Pulley:
-    t = _Table(data, f"pulley[{i}]", source, _PULLEY_KEYS)
+    t = _table(data, f"pulley[{i}]", source, _PULLEY_KEYS)
     name = t.string("name")
     if not name.strip():
         t.fail("name", "must not be empty")
@@ -560,7 +449,7 @@ def _parse_pulley(data, i, source) -> Pulley:
 
 
 def _parse_tensioner(data, source) -> Tensioner:
-    t = _Table(data, "tensioner", source, _TENSIONER_KEYS)
+    t = _table(data, "tensioner", source, _TENSIONER_KEYS)
     arm_length = t.number("arm_length", positive=True)
     vals = dict(
         pivot=_arr(t.vector2("pivot")),
@@ -583,7 +472,7 @@ def _parse_tensioner(data, source) -> Tensioner:
 
 
 def _parse_route(data, names, has_tensioner, source) -> Route:
-    t = _Table(data, "route", source, _ROUTE_KEYS)
+    t = _table(data, "route", source, _ROUTE_KEYS)
     order = t.strings("order")
     if len(order) < 2:
         t.fail("order", f"a belt needs at least two pulleys in its route, got {order!r}")
@@ -607,7 +496,7 @@ def _parse_route(data, names, has_tensioner, source) -> Route:
 
 
 def _parse_model(data, source) -> Model:
-    t = _Table(data, "model", source, _MODEL_KEYS)
+    t = _table(data, "model", source, _MODEL_KEYS)
     fidelity = t.string("fidelity", required=False, default="ancf", choices=FIDELITIES)
     n = t.integer("elements_per_span", required=False, default=16, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN)
     effects = t.strings("effects", required=False, default=[])
@@ -630,10 +519,10 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
     if TENSIONER in free_names:
         free_names = [*free_names, ARM]
     if not isinstance(data, list):
-        _fail("torque", f"expected an array of tables [[torque]], got {_describe(data)}", source)
+        _fail("torque", f"expected an array of tables [[torque]], got {describe(data)}", source)
     out = []
     for i, d in enumerate(data):
-        t = _Table(d, f"torque[{i}]", source, _TORQUE_KEYS)
+        t = _table(d, f"torque[{i}]", source, _TORQUE_KEYS)
         name = t.string("pulley")
         if name not in free_names:
             t.fail(
@@ -658,10 +547,10 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
 
 def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLoad, ...]:
     if not isinstance(data, list):
-        _fail("span_load", f"expected an array of tables [[span_load]], got {_describe(data)}", source)
+        _fail("span_load", f"expected an array of tables [[span_load]], got {describe(data)}", source)
     out = []
     for i, d in enumerate(data):
-        t = _Table(d, f"span_load[{i}]", source, _SPAN_LOAD_KEYS)
+        t = _table(d, f"span_load[{i}]", source, _SPAN_LOAD_KEYS)
         if fidelity != "ancf":
             t.fail("span", "a span load needs the hybrid model (model.fidelity = \"ancf\"): "
                    "the rotational model has no span nodes")
@@ -687,10 +576,10 @@ def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLo
 
 
 def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
-    t = _Table(data, "initial", source, _INITIAL_KEYS)
+    t = _table(data, "initial", source, _INITIAL_KEYS)
     rot = t.raw("rotation_deg", False) or {}
     if not isinstance(rot, dict):
-        t.fail("rotation_deg", f"expected a table of pulley = angle (deg), got {_describe(rot)}")
+        t.fail("rotation_deg", f"expected a table of pulley = angle (deg), got {describe(rot)}")
     pairs = []
     for name, v in rot.items():
         if name not in free_names:
@@ -700,7 +589,7 @@ def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
                 source,
             )
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            _fail(f"initial.rotation_deg.{name}", f"expected a finite number (deg), got {_describe(v)}", source)
+            _fail(f"initial.rotation_deg.{name}", f"expected a finite number (deg), got {describe(v)}", source)
         pairs.append((name, float(v)))
     arm = t.number("arm_angle_deg", required=False)
     if arm is not None and not has_tensioner:
@@ -709,7 +598,7 @@ def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
 
 
 def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
-    t = _Table(data, "simulation", source, _SIMULATION_KEYS)
+    t = _table(data, "simulation", source, _SIMULATION_KEYS)
     solver = t.string("solver", required=False, default="generalized_alpha", choices=SOLVERS)
     dt = t.number("dt_s", required=False, positive=True)
     rho = t.number("rho_inf", required=False, default=0.9)
@@ -800,7 +689,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
     source: a label kept on the scene and on errors (e.g. the file path).
     Raises :class:`SceneError` (one line, starting with the key path).
     """
-    top = _Table(data, "", source, _TOP_KEYS)
+    top = _table(data, "", source, _TOP_KEYS)
     description = top.string("description", required=False, default="")
     if "belt" not in data:
         _fail("belt", "missing (required table [belt])", source)
@@ -809,7 +698,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         _fail("pulley", "missing (give the pulleys as [[pulley]] tables)", source)
     raw = data["pulley"]
     if not isinstance(raw, list):
-        _fail("pulley", f"expected an array of tables [[pulley]], got {_describe(raw)}", source)
+        _fail("pulley", f"expected an array of tables [[pulley]], got {describe(raw)}", source)
     if not raw:
         _fail("pulley", "at least one [[pulley]] is required", source)
     pulleys = tuple(_parse_pulley(p, i, source) for i, p in enumerate(raw))

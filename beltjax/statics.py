@@ -338,16 +338,18 @@ class StaticResult:
         return d
 
 
-_install_jit = jax.jit(install)
+install_compiled = jax.jit(install)
+"""The jitted :func:`install` (lengths m, tension N, arm angle rad), compiled once per scene structure."""
 
 
 @partial(jax.jit, static_argnames=("steps",))
 def _statics_core(scene: Scene, speed, steps: int = 1):
     qi, inst, info = equilibrium(scene, speed=speed, steps=steps)
-    return _outputs(scene, qi, inst, speed), info
+    return static_outputs(scene, qi, inst, speed), info
 
 
-def _outputs(scene, qi, inst, speed):
+def static_outputs(scene, qi, inst, speed):
+    """Outputs at equilibrium ``qi``, belt speed ``speed`` (m/s): q, theta (rad), tensions, hubs (N), lengths (m)."""
     q = drive.full_coordinates(qi, scene, inst)
     _, theta = drive.angles_and_arm(qi, scene, inst)
     return dict(
@@ -365,7 +367,7 @@ def analyse_statics(scene: Scene, speed: float | None = None) -> StaticResult:
     Newton iteration fails even with speed stepping, or a span would go slack.
     """
     scene = drive.canonical(scene)
-    inst = _install_jit(scene)
+    inst = install_compiled(scene)
     check_installation(scene, inst)
     v = float(drive.belt_speed(scene)) if speed is None else float(speed)
     out, (conv, it, rn) = _statics_core(scene, v)

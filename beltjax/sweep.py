@@ -120,8 +120,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, parameters, statics
-from beltjax.scene import Scene, _describe
+from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax.scene import Scene
+from beltjax.tomltable import describe
 
 #: most cases in one sweep
 MAX_CASES = 100_000
@@ -234,53 +235,18 @@ class Spec:
         return int(np.prod(self.grid_shape, dtype=np.int64)) * (self.samples if self.random else 1)
 
 
-def _number(key: str, v, *, minimum: float | None = None, strict: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise SweepError(key, f"expected a number, got {_describe(v)}")
-    x = float(v)
-    if not math.isfinite(x):
-        raise SweepError(key, f"must be finite, got {v!r}")
-    if minimum is not None and (x < minimum or (strict and x == minimum)):
-        raise SweepError(key, f"must be {'>' if strict else '>='} {minimum:g}, got {v!r}")
-    return x
+def _raise(key: str, msg: str):
+    raise SweepError(key, msg)
 
 
-def _integer(key: str, v, minimum: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise SweepError(key, f"expected an integer, got {_describe(v)}")
-    if v < minimum:
-        raise SweepError(key, f"must be >= {minimum}, got {v!r}")
-    return int(v)
-
-
-def _string(key: str, v, choices=None) -> str:
-    if not isinstance(v, str) or not v:
-        raise SweepError(key, f"expected a non-empty string, got {_describe(v)}")
-    if choices is not None and v not in choices:
-        raise SweepError(key, f"must be one of {', '.join(repr(c) for c in choices)}, got {v!r}")
-    return v
-
-
-def _table(key: str, d, allowed) -> dict:
-    if not isinstance(d, dict):
-        raise SweepError(key, f"expected a table, got {_describe(d)}")
-    for k in d:
-        if k not in allowed:
-            where = f"in {key}" if key else "at the top level"
-            raise SweepError(f"{key}.{k}" if key else k, f"unknown key (allowed {where}: {', '.join(allowed)})")
-    return d
-
-
-def _tables(key: str, data) -> list:
-    if not isinstance(data, list) or not all(isinstance(d, dict) for d in data):
-        raise SweepError(key, f"expected an array of tables [[{key}]], got {_describe(data)}")
-    return data
+#: the sweep file's reader (SweepError; the scene file's wording)
+_READ = tomltable.Reader(_raise)
 
 
 def _rpm_range(key: str, v) -> np.ndarray:
     if not isinstance(v, list) or len(v) != 3:
-        raise SweepError(key, f"expected [A, B, STEP] (three numbers, rpm), got {_describe(v)}")
-    a, b, step = (_number(f"{key}[{i}]", x) for i, x in enumerate(v))
+        raise SweepError(key, f"expected [A, B, STEP] (three numbers, rpm), got {describe(v)}")
+    a, b, step = (_READ.number(f"{key}[{i}]", x) for i, x in enumerate(v))
     if step <= 0:
         raise SweepError(f"{key}[2]", f"STEP must be > 0, got {v[2]!r}")
     if a < 0:
@@ -295,11 +261,11 @@ def _rpm_range(key: str, v) -> np.ndarray:
 
 def _parse_grid(i: int, d: dict) -> GridAxis:
     key = f"grid[{i}]"
-    _table(key, d, _GRID_KEYS)
+    t = _READ.table(d, key, _GRID_KEYS)
     if "parameter" not in d:
         raise SweepError(f"{key}.parameter", "missing (a parameter path such as \"belt.EI\")")
-    path = _string(f"{key}.parameter", d["parameter"])
-    spacing = _string(f"{key}.spacing", d.get("spacing", "linear"), SPACINGS)
+    path = t.string("parameter", nonempty=True)
+    spacing = t.string("spacing", required=False, default="linear", choices=SPACINGS, nonempty=True)
     has_values = "values" in d
     has_range = [k for k in ("start", "stop", "num") if k in d]
     if has_values and has_range:
@@ -309,14 +275,14 @@ def _parse_grid(i: int, d: dict) -> GridAxis:
             raise SweepError(f"{key}.spacing", "applies to start/stop/num only")
         v = d["values"]
         if not isinstance(v, list) or not v:
-            raise SweepError(f"{key}.values", f"expected a non-empty array of numbers, got {_describe(v)}")
-        values = np.array([_number(f"{key}.values[{j}]", x) for j, x in enumerate(v)])
+            raise SweepError(f"{key}.values", f"expected a non-empty array of numbers, got {describe(v)}")
+        values = np.array([_READ.number(f"{key}.values[{j}]", x) for j, x in enumerate(v)])
     else:
         for k in ("start", "stop", "num"):
             if k not in d:
                 raise SweepError(f"{key}.{k}", "missing (give values = [...] or start, stop and num)")
-        a, b = _number(f"{key}.start", d["start"]), _number(f"{key}.stop", d["stop"])
-        num = _integer(f"{key}.num", d["num"], 1)
+        a, b = t.number("start"), t.number("stop")
+        num = t.integer("num", minimum=1)
         if num > MAX_CASES:
             raise SweepError(f"{key}.num", f"at most {MAX_CASES} cases in a sweep, got {num}")
         if spacing == "log":
@@ -331,19 +297,17 @@ def _parse_grid(i: int, d: dict) -> GridAxis:
 
 def _parse_random(i: int, d: dict, default_seed: int) -> tuple[RandomAxis, int | None]:
     key = f"random[{i}]"
-    _table(key, d, _RANDOM_KEYS)
+    t = _READ.table(d, key, _RANDOM_KEYS)
     if "parameter" not in d:
         raise SweepError(f"{key}.parameter", "missing (a parameter path such as \"belt.EI\")")
-    path = _string(f"{key}.parameter", d["parameter"])
+    path = t.string("parameter", nonempty=True)
     if "distribution" not in d:
         raise SweepError(f"{key}.distribution", f"missing (one of {', '.join(DISTRIBUTIONS)})")
-    dist = _string(f"{key}.distribution", d["distribution"], DISTRIBUTIONS)
-    nominal = d.get("nominal", False)
-    if not isinstance(nominal, bool):
-        raise SweepError(f"{key}.nominal", f"expected true or false, got {_describe(nominal)}")
+    dist = t.string("distribution", choices=DISTRIBUTIONS, nonempty=True)
+    nominal = t.boolean("nominal")
     if nominal and "mean" in d:
         raise SweepError(f"{key}.mean", "give either mean or nominal = true, not both")
-    mean = _number(f"{key}.mean", d["mean"]) if "mean" in d else None
+    mean = t.number("mean", required=False)
     spreads = [k for k in ("std", "tolerance", "relative_tolerance") if k in d]
     bounds = [k for k in ("low", "high") if k in d]
     if bounds:
@@ -357,7 +321,7 @@ def _parse_random(i: int, d: dict, default_seed: int) -> tuple[RandomAxis, int |
         if nominal or mean is not None:
             raise SweepError(f"{key}.{'mean' if mean is not None else 'nominal'}",
                              "low/high give the interval: no centre (mean or nominal) with them")
-        low, high = _number(f"{key}.low", d["low"]), _number(f"{key}.high", d["high"])
+        low, high = t.number("low"), t.number("high")
         if not high > low:
             raise SweepError(f"{key}.high", f"must be > low = {low!r}, got {high!r}")
         axis = RandomAxis(path, dist, None, low=low, high=high, key=key)
@@ -372,12 +336,12 @@ def _parse_random(i: int, d: dict, default_seed: int) -> tuple[RandomAxis, int |
             raise SweepError(f"{key}.std", "std belongs to a normal distribution (uniform: low/high or tolerance)")
         if mean is None and not nominal:
             raise SweepError(f"{key}.mean", "missing: give mean = value or nominal = true (the scene's value)")
-        x = _number(f"{key}.{s}", d[s], minimum=0.0)
+        x = t.number(s, nonnegative=True)
         if s == "relative_tolerance" and x >= 1.0:
             raise SweepError(f"{key}.relative_tolerance", f"must be < 1 (a fraction: 0.003 is 0.3 %), got {d[s]!r}")
         axis = RandomAxis(path, dist, mean, **{s: x}, key=key)
-    seed = _integer(f"{key}.seed", d["seed"], 0) if "seed" in d else default_seed
-    samples = _integer(f"{key}.samples", d["samples"], 1) if "samples" in d else None
+    seed = t.integer("seed", required=False, default=default_seed, minimum=0)
+    samples = t.integer("samples", required=False, minimum=1)
     return dataclasses.replace(axis, seed=seed), samples
 
 
@@ -386,19 +350,19 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
 
     Checks the structure only; :func:`check_spec` checks it against a scene.
     """
-    _table("", data, _TOP_KEYS)
-    description = _string("description", data["description"]) if "description" in data else ""
+    top = _READ.table(data, "", _TOP_KEYS)
+    description = top.string("description", required=False, default="", nonempty=True)
     outs = data.get("outputs", ["statics", "modal"])
     if not isinstance(outs, list) or not outs:
-        raise SweepError("outputs", f"expected a non-empty array of {', '.join(OUTPUTS)}, got {_describe(outs)}")
+        raise SweepError("outputs", f"expected a non-empty array of {', '.join(OUTPUTS)}, got {describe(outs)}")
     outputs = []
     for j, o in enumerate(outs):
-        o = _string(f"outputs[{j}]", o, OUTPUTS)
+        o = _READ.string(f"outputs[{j}]", o, choices=OUTPUTS, nonempty=True)
         if o in outputs:
             raise SweepError(f"outputs[{j}]", f"{o!r} listed twice")
         outputs.append(o)
     outputs = tuple(o for o in OUTPUTS if o in outputs)
-    modes = _integer("modes", data["modes"], 1) if "modes" in data else 12
+    modes = top.integer("modes", required=False, default=12, minimum=1)
     rpm = None
     if "campbell" in outputs:
         if "rpm" not in data:
@@ -406,18 +370,18 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
         rpm = _rpm_range("rpm", data["rpm"])
     elif "rpm" in data:
         raise SweepError("rpm", "given but \"campbell\" is not in outputs")
-    chunk = _integer("chunk", data["chunk"], 1) if "chunk" in data else None
-    seed = _integer("seed", data["seed"], 0) if "seed" in data else 0
-    sched = _string("dask_scheduler", data["dask_scheduler"]) if "dask_scheduler" in data else None
-    grid = tuple(_parse_grid(i, d) for i, d in enumerate(_tables("grid", data.get("grid", []))))
+    chunk = top.integer("chunk", required=False, minimum=1)
+    seed = top.integer("seed", required=False, default=0, minimum=0)
+    sched = top.string("dask_scheduler", required=False, nonempty=True)
+    grid = tuple(_parse_grid(i, d) for i, d in enumerate(top.tables("grid")))
     rnd, counts = [], []
-    for i, d in enumerate(_tables("random", data.get("random", []))):
+    for i, d in enumerate(top.tables("random")):
         a, n = _parse_random(i, d, seed)
         rnd.append(a)
         counts.append((f"random[{i}].samples", n))
     if not grid and not rnd:
         raise SweepError("grid", "no sweep axes: give at least one [[grid]] or [[random]] table")
-    samples = _integer("samples", data["samples"], 1) if "samples" in data else None
+    samples = top.integer("samples", required=False, minimum=1)
     skey = "samples"
     for k, n in counts:
         if n is None:
@@ -476,7 +440,7 @@ def nominal_value(scene: Scene, path: str) -> float:
     tension (and ``belt.static_tension`` of one given by its length) is the installed one."""
     parameters.check(scene, path)
     if path in ("belt.length", "belt.static_tension") and getattr(scene.belt, path.split(".")[1]) is None:
-        inst = statics._install_jit(drive.canonical(scene))
+        inst = statics.install_compiled(drive.canonical(scene))
         statics.check_installation(scene, inst)
         return float(inst.belt_length if path == "belt.length" else inst.tension)
     return float(parameters.get_value(scene, path))
@@ -585,7 +549,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     inst = statics.install(sc)
     v = drive.belt_speed(sc)
     qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps)
-    out = statics._outputs(sc, qi, inst, v)
+    out = statics.static_outputs(sc, qi, inst, v)
     lam = inst.stretch
     conds = [~jnp.isfinite(lam) | (lam <= 1.0), lam - 1.0 > statics.MAX_INSTALL_STRAIN]
     codes = [_CODE["belt_slack"], _CODE["belt_overstretched"]]

@@ -293,7 +293,7 @@ def _labelling_scene(scene: Scene, paths, values) -> Scene:
     s = parameters.set_values(scene, values)
     if length is not None:
         if scene.belt.length is None:
-            inst = statics._install_jit(drive.canonical(parameters.set_value(s, "belt.length", length)))
+            inst = statics.install_compiled(drive.canonical(parameters.set_value(s, "belt.length", length)))
             s = parameters.set_value(s, "belt.static_tension", float(inst.tension))
         else:
             s = parameters.set_value(s, "belt.length", length)

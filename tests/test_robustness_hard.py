@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import pathlib
 
 import jax
 import jax.numpy as jnp
@@ -37,24 +36,13 @@ from beltjax.ancf import Section
 from beltjax.scene import Initial, Simulation, loads_scene
 from beltjax.span import span_matrices, stretch_for_tension
 
-SCENES = pathlib.Path(__file__).resolve().parents[1] / "scenes"
+from _scenes import scene_text, substitute
+
 #: elements per span: spans and the two- and three-pulley drives (one compiled span mesh)
 N = 6
 #: elements per span of the tensioner bench
 N_TENSIONER = 4
 GRAVITY = 9.81
-
-
-def _text(name):
-    return (SCENES / name).read_text()
-
-
-def _sub(text, *pairs):
-    """Replace each (old, new) in text; every old string must occur exactly once."""
-    for old, new in pairs:
-        assert text.count(old) == 1, old
-        text = text.replace(old, new)
-    return text
 
 
 def _speeds(L, T, EA, EI, rhoA):
@@ -99,16 +87,16 @@ def _transverse(result):
 def _bench_text(gravity=False):
     """The two-pulley bench (T = 200 N, transport listed) with N elements per span."""
     effects = '["transport", "gravity"]' if gravity else '["transport"]'
-    return _sub(_text("two_pulley_T200.toml"),
-                ("elements_per_span = 16 ", f"elements_per_span = {N} "),
-                ('effects = ["transport"]', f"effects = {effects}"))
+    return substitute(scene_text("two_pulley_T200.toml"),
+                      ("elements_per_span = 16 ", f"elements_per_span = {N} "),
+                      ('effects = ["transport"]', f"effects = {effects}"))
 
 
 def _with_belt(text, **values):
     """The scene text with belt numbers replaced (keys as in the bench scene)."""
     for key, old in (("EI", "EI = 0.034 "), ("static_tension", "static_tension = 200.0 ")):
         if key in values:
-            text = _sub(text, (old, f"{key} = {values[key]!r} "))
+            text = substitute(text, (old, f"{key} = {values[key]!r} "))
     return text
 
 
@@ -349,22 +337,23 @@ def test_belt_a_hair_longer_than_its_path_is_a_clear_error(hanging):
     text = _bench_text()
     for length in (path * (1 + 1e-9), path):
         with pytest.raises(ValueError, match="slack") as e:
-            statics.analyse_statics(loads_scene(_sub(text, ("static_tension = 200.0 ", f"length = {length!r} "))))
+            statics.analyse_statics(loads_scene(substitute(text, ("static_tension = 200.0 ",
+                                                                  f"length = {length!r} "))))
         assert str(e.value).startswith("belt.length:") and "\n" not in str(e.value)
 
 
 @pytest.fixture(scope="module")
 def tensioner_text():
-    return _sub(_text("tensioner_bench_stage2.toml"),
-                ("elements_per_span = 8 ", f"elements_per_span = {N_TENSIONER} "))
+    return substitute(scene_text("tensioner_bench_stage2.toml"),
+                      ("elements_per_span = 8 ", f"elements_per_span = {N_TENSIONER} "))
 
 
 def _tensioner(text, length=None, preload=None):
     """The tensioner bench with another belt length (m) or spring free angle (deg)."""
     if length is not None:
-        text = _sub(text, ("length = 1.792939915 ", f"length = {length!r} "))
+        text = substitute(text, ("length = 1.792939915 ", f"length = {length!r} "))
     if preload is not None:
-        text = _sub(text, ("spring_preload_deg = 94.5 ", f"spring_preload_deg = {preload!r} "))
+        text = substitute(text, ("spring_preload_deg = 94.5 ", f"spring_preload_deg = {preload!r} "))
     return loads_scene(text)
 
 
@@ -406,7 +395,7 @@ def test_tensioner_belt_near_its_longest_path(tensioner_text):
 def three_pulley():
     """The bench with a free idler (R = 30 mm) on the belt's back 1 cm from the crank:
     spans crank-idler 0.010 m, idler-alternator 0.556 m, alternator-crank 0.674 m."""
-    text = _sub(
+    text = substitute(
         _bench_text(),
         ('order = ["crank", "alternator"]', 'order = ["crank", "idler", "alternator"]'),
         ("back_side = []", 'back_side = ["idler"]'),
@@ -652,8 +641,8 @@ T_LONG = 3.0
 def long_run():
     """Tensioner bench, rotational model, crank held, no damping: released from a 2 deg
     alternator rotation, T_LONG seconds at dt = 2e-4 s (rho_inf = 1)."""
-    text = _sub(
-        _text("sim_tensioner_installation.toml"),
+    text = substitute(
+        scene_text("sim_tensioner_installation.toml"),
         ("CA = 3.33 ", "# CA"), ("damping = 0.1 ", "# damping"),
         ('effects = ["belt_damping", "tensioner_damping"]', "effects = []"),
         ("arm_angle_deg = 47.632346 ", "# arm_angle_deg"),

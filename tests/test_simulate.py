@@ -34,7 +34,6 @@ scene with its [initial], [simulation] and load tables, which are static fields.
 from __future__ import annotations
 
 import math
-import pathlib
 import time
 
 import equinox as eqx
@@ -46,24 +45,13 @@ import pytest
 from beltjax import drive, drive_modal, signals, span, statics, transient
 from beltjax.scene import load_scene, loads_scene
 
-SCENES = pathlib.Path(__file__).resolve().parents[1] / "scenes"
+from _scenes import SCENES, scene_text, substitute
+
 #: one chunk length for every run, so that runs of one structure share the compiled integrator
 CHUNK = 0.5
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def _text(name):
-    return (SCENES / name).read_text()
-
-
-def _sub(text, *pairs):
-    """Replace each (old, new) in text; every old string must occur exactly once."""
-    for old, new in pairs:
-        assert text.count(old) == 1, old
-        text = text.replace(old, new)
-    return text
 
 
 def _simulate(scene, t_end, label):
@@ -177,8 +165,8 @@ def test_scene_damping_parameters_come_from_the_complex_modulus(ref):
 def release():
     """Sim 1 (thesis 7.1.1.2): the alternator released from 2 deg, undamped and damped, 10 s each."""
     damped = load_scene(SCENES / "sim_two_pulley_release.toml")
-    text = _text("sim_two_pulley_release.toml")
-    undamped = loads_scene(_sub(text, ("CA = 3.33 ", "CA = 0.0 ")))
+    text = scene_text("sim_two_pulley_release.toml")
+    undamped = loads_scene(substitute(text, ("CA = 3.33 ", "CA = 0.0 ")))
     out = dict(damped_scene=damped, undamped_scene=undamped)
     out["undamped"] = _simulate(undamped, 10.0, "release, undamped")
     out["damped"] = _simulate(damped, 10.0, "release, damped")
@@ -318,9 +306,9 @@ def fluct():
     """Sim 2 (thesis 7.1.1.3): crank driven at 600 rpm.  'forced': the scene (1 deg at 20 Hz,
     both pulleys unbalanced); 'free': neither, no damping, released from a 2 deg alternator
     rotation (same compiled structure: the effects stay listed with zero parameters)."""
-    text = _text("sim_two_pulley_fluctuation.toml")
+    text = scene_text("sim_two_pulley_fluctuation.toml")
     forced = load_scene(SCENES / "sim_two_pulley_fluctuation.toml")
-    free = loads_scene(_sub(
+    free = loads_scene(substitute(
         text, ("fluctuation_amplitude_deg = 1.0", "fluctuation_amplitude_deg = 0.0"),
         ("cm_offset = [0.0005, 0.0]", "cm_offset = [0.0, 0.0]"), ("cm_offset = [0.001, 0.0]", "cm_offset = [0.0, 0.0]"),
         ("CA = 3.33 ", "CA = 0.0 "),
@@ -776,8 +764,8 @@ def _hybrid_scene(speed_rpm=0.0, amplitude=0.0, frequency=0.0, phase=0.0, t_star
     """The 7.1.2.4 scene with transport listed (for the runs at speed) and the span load set."""
     speed_rpm, amplitude, frequency = float(speed_rpm), float(amplitude), float(frequency)
     phase, t_start, t_end = float(phase), float(t_start), float(t_end)
-    text = _sub(
-        _text("sim_two_pulley_span_resonance.toml"),
+    text = substitute(
+        scene_text("sim_two_pulley_span_resonance.toml"),
         ('effects = ["gravity"]', 'effects = ["transport", "gravity"]'),
         ("speed_rpm = 0.0 ", f"speed_rpm = {speed_rpm!r} "),
         ("amplitude_N = 0.02 ", f"amplitude_N = {amplitude!r} "),

@@ -1,0 +1,189 @@
+"""Typed reading of parsed TOML tables with one-line errors.
+
+One reader for the scene, optimisation and sweep files.  Each file kind passes
+``fail(path, message)``, which raises its own error class (the key path leads its
+message), and a :class:`Style` for the few messages whose wording differs between
+the kinds.  :class:`Reader` checks single values, :class:`Table` a table's keys.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NoReturn
+
+
+def describe(v) -> str:
+    """A value as error messages name it: ``a string ('x')``, ``a table``, ``float (inf)``."""
+    if isinstance(v, bool):
+        return f"a boolean ({str(v).lower()})"
+    if isinstance(v, str):
+        return f"a string ({v!r})"
+    if isinstance(v, dict):
+        return "a table"
+    if isinstance(v, list):
+        return "an array"
+    return f"{type(v).__name__} ({v!r})"
+
+
+@dataclass(frozen=True)
+class Style:
+    """Wording of the messages that differ between file kinds (the defaults: scene and sweep files).
+
+    unknown_where: an unknown key names its table, "unknown key (allowed in X: ...)";
+        else "unknown key (allowed: ...)".
+    finite: a non-number and a non-finite number both read "expected a finite number, got ...";
+        else "expected a number, got ..." and "must be finite, got ...".
+    choose: a string outside its choices reads "unknown value 'x'; choose one of a, b" and a
+        missing one "missing (required key); one of a, b"; else "must be one of 'a', 'b', got 'x'"
+        and "missing (required key)".
+    top: the key named when the top-level table is not a table.
+    """
+
+    unknown_where: bool = True
+    finite: bool = False
+    choose: bool = False
+    top: str = ""
+
+
+@dataclass(frozen=True)
+class Reader:
+    """Checks of single values named by their key ``path``; ``fail(path, message)`` raises."""
+
+    fail: Callable[[str, str], NoReturn]
+    style: Style = Style()
+
+    def table(self, data, key: str, allowed) -> Table:
+        """``data`` as the table at ``key`` ("" for the top level) with keys ``allowed``."""
+        return Table(data, key, allowed, self)
+
+    def number(self, path: str, v, *, positive: bool = False, nonnegative: bool = False) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            self.fail(path, f"expected {'a finite number' if self.style.finite else 'a number'}, got {describe(v)}")
+        if not math.isfinite(v):
+            self.fail(path, f"expected a finite number, got {describe(v)}" if self.style.finite
+                      else f"must be finite, got {v!r}")
+        if positive and not v > 0:
+            self.fail(path, f"must be > 0, got {v!r}")
+        if nonnegative and not v >= 0:
+            self.fail(path, f"must be >= 0, got {v!r}")
+        return float(v)
+
+    def integer(self, path: str, v, *, minimum: int | None = None, maximum: int | None = None) -> int:
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(path, f"expected an integer, got {describe(v)}")
+        if minimum is not None and v < minimum:
+            self.fail(path, f"must be >= {minimum}, got {v!r}")
+        if maximum is not None and v > maximum:
+            self.fail(path, f"must be <= {maximum}, got {v!r}")
+        return int(v)
+
+    def vector2(self, path: str, v) -> list[float]:
+        if not isinstance(v, list) or len(v) != 2:
+            self.fail(path, f"expected [x, y] (two numbers), got {describe(v) if not isinstance(v, list) else repr(v)}")
+        for i, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                self.fail(path, f"expected [x, y] (two numbers), element {i} is {describe(x)}")
+            if not math.isfinite(x):
+                self.fail(path, f"must be finite, got {v!r}")
+        return [float(x) for x in v]
+
+    def boolean(self, path: str, v) -> bool:
+        if not isinstance(v, bool):
+            self.fail(path, f"expected true or false, got {describe(v)}")
+        return v
+
+    def string(self, path: str, v, *, choices=None, nonempty: bool = False) -> str:
+        """A string (``nonempty``: not ""), one of ``choices`` when given."""
+        if not isinstance(v, str) or (nonempty and not v):
+            self.fail(path, f"expected {'a non-empty string' if nonempty else 'a string'}, got {describe(v)}")
+        if choices is not None and v not in choices:
+            if self.style.choose:
+                self.fail(path, f"unknown value {v!r}; choose one of {', '.join(choices)}")
+            self.fail(path, f"must be one of {', '.join(repr(c) for c in choices)}, got {v!r}")
+        return v
+
+    def strings(self, path: str, v) -> list[str]:
+        """An array of distinct strings."""
+        if not isinstance(v, list):
+            self.fail(path, f"expected an array of strings, got {describe(v)}")
+        for i, x in enumerate(v):
+            if not isinstance(x, str):
+                self.fail(path, f"expected an array of strings, element {i} is {describe(x)}")
+        seen = set()
+        for x in v:
+            if x in seen:
+                self.fail(path, f"{x!r} appears twice")
+            seen.add(x)
+        return list(v)
+
+
+class Table:
+    """A TOML table being read: checked for unknown keys, then typed getters by key.
+
+    A getter returns ``default`` for a missing key unless ``required`` (then it fails).
+    """
+
+    def __init__(self, data, key: str, allowed, reader: Reader):
+        if not isinstance(data, dict):
+            reader.fail(key or reader.style.top, f"expected a table, got {describe(data)}")
+        self.data, self.key, self.allowed, self.reader = data, key, allowed, reader
+        for k in data:
+            if k not in allowed:
+                if reader.style.unknown_where:
+                    where = f"in {key}" if key else "at the top level"
+                    reader.fail(self.path(k), f"unknown key (allowed {where}: {', '.join(allowed)})")
+                reader.fail(self.path(k), f"unknown key (allowed: {', '.join(allowed)})")
+
+    def path(self, k: str) -> str:
+        return f"{self.key}.{k}" if self.key else k
+
+    def fail(self, k: str, msg: str) -> NoReturn:
+        self.reader.fail(self.path(k), msg)
+
+    def has(self, k: str) -> bool:
+        return k in self.data
+
+    def raw(self, k: str, required: bool, missing: str = "missing (required key)") -> Any:
+        """The value at ``k`` unchecked; None when missing and not required."""
+        if k not in self.data:
+            if required:
+                self.fail(k, missing)
+            return None
+        return self.data[k]
+
+    def number(self, k, *, required=True, default=None, positive=False, nonnegative=False):
+        v = self.raw(k, required)
+        return default if v is None else self.reader.number(self.path(k), v, positive=positive,
+                                                            nonnegative=nonnegative)
+
+    def integer(self, k, *, required=True, default=None, minimum=None, maximum=None):
+        v = self.raw(k, required)
+        return default if v is None else self.reader.integer(self.path(k), v, minimum=minimum, maximum=maximum)
+
+    def vector2(self, k, *, required=True, default=None):
+        v = self.raw(k, required)
+        return default if v is None else self.reader.vector2(self.path(k), v)
+
+    def boolean(self, k, *, required=False, default=False):
+        v = self.raw(k, required)
+        return default if v is None else self.reader.boolean(self.path(k), v)
+
+    def string(self, k, *, required=True, default=None, choices=None, nonempty=False):
+        missing = "missing (required key)"
+        if choices is not None and self.reader.style.choose:
+            missing += f"; one of {', '.join(choices)}"
+        v = self.raw(k, required, missing)
+        return default if v is None else self.reader.string(self.path(k), v, choices=choices, nonempty=nonempty)
+
+    def strings(self, k, *, required=True, default=None):
+        v = self.raw(k, required)
+        return default if v is None else self.reader.strings(self.path(k), v)
+
+    def tables(self, k) -> list:
+        """The array of tables ``[[k]]`` (default []); its tables are read by the caller."""
+        v = self.data.get(k, [])
+        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+            self.fail(k, f"expected an array of tables [[{k}]], got {describe(v)}")
+        return v
