@@ -581,8 +581,8 @@ def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None
     if steady:
         F = full_forces(q, v, scene, inst, transport_speed(scene, inst, speed))
     else:
-        _, xd, xdd = _travel_rates(scene, t)
-        F = full_forces(q, v, scene, inst, xd / inst.stretch, xdd / inst.stretch, t=t)
+        c, c_dot = transient_transport_speed(scene, inst, v, t)
+        F = full_forces(q, v, scene, inst, c, c_dot, t=t)
     return q, v, gamma, J, F
 
 
@@ -669,9 +669,52 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     return jnp.concatenate([a_r, X[:, nr] - X[:, :nr] @ a_r])
 
 
+#: largest rigid block solved by the unrolled Cholesky of :func:`_small_spd_solve`
+UNROLLED_SOLVE_MAX = 8
+
+
 def _small_spd_solve(A, b):
-    """A^-1 b for a small symmetric positive definite A (a mass matrix of the rigid coordinates)."""
-    return jnp.linalg.solve(A, b)
+    """A^-1 b for a small symmetric positive definite A (a mass matrix of the rigid coordinates).
+
+    Up to :data:`UNROLLED_SOLVE_MAX` unknowns by a Cholesky factorisation unrolled into scalar
+    operations, which XLA fuses: the LAPACK calls of ``jnp.linalg.solve`` cost more in fixed
+    overhead than the arithmetic at these sizes (a rotational drive's vector field is a few
+    microseconds, evaluated tens of thousands of times per simulated second).
+    """
+    n = A.shape[0]
+    if n > UNROLLED_SOLVE_MAX:
+        return jnp.linalg.solve(A, b)
+    L = [[None] * n for _ in range(n)]
+    for j in range(n):
+        d = jnp.sqrt(A[j, j] - sum((L[j][k] * L[j][k] for k in range(j)), 0.0))
+        L[j][j] = d
+        for i in range(j + 1, n):
+            L[i][j] = (A[i, j] - sum((L[i][k] * L[j][k] for k in range(j)), 0.0)) / d
+    z = []
+    for i in range(n):
+        z.append((b[i] - sum((L[i][k] * z[k] for k in range(i)), 0.0)) / L[i][i])
+    x = [None] * n
+    for i in reversed(range(n)):
+        x[i] = (z[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), 0.0)) / L[i][i]
+    return jnp.stack(x)
+
+
+def transient_transport_speed(scene: Scene, inst: Installation, v, t):
+    """Transport speed c (m/s of unstretched belt) and its rate (m/s^2) at time t (s) of a
+    transient, full coordinate rates v.
+
+    Hybrid model: those of the nominal travel (:func:`belt_travel`), the material speed of the
+    Eulerian mesh; a free drive pulley turning away from it feeds belt into its spans through
+    the slide of their end nodes.  Rotational model (massless spans): the drive pulley's actual
+    rim speed, c = s R theta' / lam (the thesis' c = R theta'), so that the centrifugal tension
+    follows a free drive pulley turned by a torque; equal to the nominal one for a driven pulley.
+    """
+    _, xd, xdd = _travel_rates(scene, t)
+    if flexible(scene):
+        return xd / inst.stretch, xdd / inst.stretch
+    d = drive_pulley(scene)
+    _, Bd = split_full(v, scene)
+    return scene.route.senses[d] * inst.radii[d] * Bd[d, 2] / inst.stretch, xdd / inst.stretch
 
 
 def _travel_rates(scene: Scene, t):

@@ -41,7 +41,8 @@ speeds in rpm where it ends in ``_rpm``.  Tables and keys:
                 t_end_s: a harmonic force normal to the installed span.
 ``[initial]``   optional transient start: rotation_deg = {pulley = deg} added to the
                 static equilibrium, arm_angle_deg (absolute).
-``[simulation]`` optional transient settings: solver (:data:`SOLVERS`), dt_s,
+``[simulation]`` optional transient settings: solver (:data:`SOLVERS`; default by
+                fidelity, see beltjax.transient.default_solver), dt_s,
                 rho_inf, rtol, atol, output_dt_s, nodes (["<span>:<node>"]), max_steps.
 Top level:      optional ``description`` (string).
 
@@ -249,12 +250,13 @@ class Initial(eqx.Module):
 
 
 class Simulation(eqx.Module):
-    """Transient settings (static): solver name, step dt_s (s; fixed-step solvers and the first
+    """Transient settings (static): solver name (None: :func:`beltjax.transient.default_solver`,
+    by fidelity), step dt_s (s; fixed-step solvers and the first
     step of adaptive ones), rho_inf (generalized-alpha), rtol/atol (adaptive solvers),
     output_dt_s (s), output nodes ("<span>:<node>"; default each span's middle node),
     max_steps (adaptive solvers)."""
 
-    solver: str = eqx.field(static=True, default="generalized_alpha")
+    solver: str | None = eqx.field(static=True, default=None)
     dt_s: float | None = eqx.field(static=True, default=None)
     rho_inf: float = eqx.field(static=True, default=0.9)
     rtol: float = eqx.field(static=True, default=1e-6)
@@ -599,7 +601,7 @@ def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
 
 def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
     t = _table(data, "simulation", source, _SIMULATION_KEYS)
-    solver = t.string("solver", required=False, default="generalized_alpha", choices=SOLVERS)
+    solver = t.string("solver", required=False, default=None, choices=SOLVERS)
     dt = t.number("dt_s", required=False, positive=True)
     rho = t.number("rho_inf", required=False, default=0.9)
     if not 0.0 <= rho <= 1.0:

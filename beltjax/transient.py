@@ -10,10 +10,12 @@ through the same map and the same code; the rotational model has only the rigid
 coordinates (its spans are massless springs and dampers).
 
 The state is ``y = (q_i, q_i')``; diffrax integrates ``y' = (q_i', M_ii^-1 F_ii)``.
-Solvers (``[simulation] solver``): ``generalized_alpha`` (default: the
-fixed-step structural integrator of :mod:`beltjax.integrators`, implicit,
-second order, numerical damping of unresolved modes set by ``rho_inf``),
-``tsit5`` and ``dopri8`` (explicit, adaptive), ``kvaerno5`` (implicit, adaptive).
+Solvers (``[simulation] solver``): ``generalized_alpha`` (the fixed-step
+structural integrator of :mod:`beltjax.integrators`, implicit, second order,
+numerical damping of unresolved modes set by ``rho_inf``; the default of the
+hybrid model), ``tsit5`` and ``dopri8`` (explicit, adaptive; ``dopri8`` is the
+default of the rotational model), ``kvaerno5`` (implicit, adaptive): see
+:func:`default_solver`.
 The run starts from the static equilibrium at the initial belt speed, changed
 by the scene's ``[initial]`` table.  A solver failure raises
 :class:`TransientError`; it is never returned as a result.
@@ -45,7 +47,7 @@ from beltjax import drive, signals, statics
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
 
-__all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt"]
+__all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt", "default_solver"]
 
 
 class TransientError(ValueError):
@@ -158,6 +160,18 @@ def vector_field(scene: Scene, inst):
     return f
 
 
+def default_solver(scene: Scene) -> str:
+    """The solver used when ``[simulation] solver`` is not given, chosen by measurement
+    (benchmarks/bench_transient.py, benchmarks/README.md section 3): ``dopri8`` for the
+    rotational fidelity (a few smooth, non-stiff coordinates: at equal accuracy the explicit
+    8th-order pair takes far fewer evaluations than a second-order implicit step, whose phase
+    error on the 500 Hz arm mode of the tensioner bench is 26 % after 0.5 s at dt = 1e-4 s),
+    ``generalized_alpha`` for the hybrid model (stiff: axial span modes of 1-2 kHz and above)."""
+    if scene.simulation.solver is not None:
+        return scene.simulation.solver
+    return "generalized_alpha" if drive.flexible(scene) else "dopri8"
+
+
 def _solver(scene: Scene):
     sim = scene.simulation
     name = sim.solver
@@ -214,7 +228,7 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t)
     qdd = jnp.linalg.solve(J.T @ M_full @ J, J.T @ (F - M_full @ gamma))
     a = J @ qdd + gamma
-    c = drive._travel_rates(scene, t)[1] / inst.stretch
+    c = drive.transient_transport_speed(scene, inst, v, t)[0]
     R = F - M_full @ a  # applied minus inertial: what the constraints must balance
     Js = jax.jacfwd(lambda s: phi(qi, t, s, drv0))(shift0)  # (nq, nrp, 2)
     bearings = jnp.einsum("q,qkd->kd", R, Js)
@@ -377,6 +391,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise TransientError(f"t_end: must be a finite time > 0 s, got {t_end!r}")
     scene = drive.canonical(scene)
+    scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, solver=default_solver(scene)))
     dt = default_dt(scene) if dt is None else float(dt)
     if not (math.isfinite(dt) and 0 < dt < t_end):
         raise TransientError(f"dt: must be > 0 and below t_end = {t_end!r} s, got {dt!r}")

@@ -19,6 +19,8 @@ implicit solver at 1e-4 s steps.
 
    rot     the rotational two-pulley bench, T = 600 N, crank free, alternator turned
            2 deg at t = 0 (outputs every 1 ms);
+   rot-tens the rotational tensioner bench (stage 2), crank free, alternator turned 2 deg
+           (outputs every 1 ms; its arm mode at 495 Hz sets the cost);
    hyb     the hybrid two-pulley bench, 16 elements per span, crank driven at 600 rpm,
            ``effects = ["transport"]``, alternator turned 0.5 deg, and a transverse
            half-sine force of 5 N for 2.5 ms on the middle node of the first span (without
@@ -38,7 +40,7 @@ implicit solver at 1e-4 s steps.
    is integrated in chunks of 50 output samples with a cap on steps per chunk and a
    wall-time guard checked between chunks, so a stalling solver cannot hang the
    benchmark: such runs are reported with the time spent and how far they got.
-   Reference: Dopri8 at rtol 1e-8 (rot 1e-12, tens 1e-7), checked (full run, cases rot
+   Reference: Dopri8 at rtol 1e-8 (rot and rot-tens 1e-12, tens 1e-7), checked (full run, cases rot
    and hyb) against generalized-alpha with rho_inf = 1 at dt = 1e-5 s.
    Error: per channel (span tension, alternator speed, mid-span node displacement,
    tensioner arm angle), max |x - x_ref| over the saved samples divided by the
@@ -51,7 +53,8 @@ implicit solver at 1e-4 s steps.
    divided by the simulated window = s of wall time per simulated second;
    "compile" is the first call on a tiny window (trace + XLA + a few steps).
 3. Headline: ``beltjax.transient.simulate`` itself with the default solver
-   (generalized-alpha, dt = 1e-4 s, rho_inf = 0.9): the rotational drives, the hybrid
+   (``transient.default_solver``: Dopri8 at rtol 1e-6, atol 1e-9 for the rotational model,
+   generalized-alpha at dt = 1e-4 s, rho_inf = 0.9 for the hybrid): the rotational drives, the hybrid
    two-pulley bench at 600 rpm with and without the span pulse, and the tensioner bench
    (case tens): first call (compile + first chunk) and a second, compiled call of the
    same window.
@@ -143,6 +146,12 @@ CASES = {
         window=(0.5, 0.2), output_dt=1e-3, chunk=50,
         channels=[("span_tensions_N", 0), ("pulley_speeds_rpm", "alternator")],
     ),
+    "rot-tens": dict(
+        label="rotational tensioner bench, stage 2, crank free, alternator +2 deg",
+        scene=dict(base="tensioner_bench_stage2", fidelity="rotational", rotation={"alternator": 2.0}),
+        window=(0.5, 0.2), output_dt=1e-3, chunk=50,
+        channels=[("span_tensions_N", 0), ("pulley_speeds_rpm", "alternator"), ("arm_angle_deg", None)],
+    ),
     "hyb": dict(
         label="hybrid two-pulley, 16 el./span, 600 rpm, transport, alternator +0.5 deg, 5 N span pulse",
         scene=dict(base="two_pulley_T600", driven_rpm=600, effects=["transport"], rotation={"alternator": 0.5},
@@ -170,14 +179,14 @@ CASES = {
 
 def settings(case: str, quick: bool):
     """(solver, dict(dt, rtol, atol, rho, ref)) runs of a case; the reference runs come first."""
-    rot = case == "rot"
-    tight = {"rot": (1e-12, 1e-15), "tens": (1e-7, 1e-10)}.get(case, (1e-8, 1e-11))
+    rot = case.startswith("rot")
+    tight = {"rot": (1e-12, 1e-15), "rot-tens": (1e-12, 1e-15), "tens": (1e-7, 1e-10)}.get(case, (1e-8, 1e-11))
     ref = [("dopri8", dict(rtol=tight[0], atol=tight[1], ref=True))]
     if not quick and case in ("rot", "hyb"):  # independent check of the reference
         ref.append(("generalized_alpha", dict(dt=1e-5, rho=1.0, ref=True)))
     if rot:
         ga = [(0.9, 1e-3), (0.9, 2e-4), (0.9, 1e-4), (0.9, 5e-5), (0.9, 2.5e-5), (1.0, 1e-4)]
-        tsit, dop, kv = [1e-4, 1e-6, 1e-8], [1e-6, 1e-9], [1e-4, 1e-6, 1e-8]
+        tsit, dop, kv = [1e-4, 1e-6, 1e-8], [1e-4, 1e-6, 1e-9], [1e-4, 1e-6, 1e-8]
     else:
         # outputs every 1e-4 s: steps that divide it (coarser ones would add the linear dense
         # output's error); Kvaerno5 costs 10-100 ms per step here, so it gets one or two runs
@@ -243,7 +252,7 @@ class Case:
         if name == "generalized_alpha":
             return int(math.ceil(self.chunk_s / 1e-5)) + 16
         if name == "kvaerno5":
-            return 512 if self.key in ("rot", "hyb") else 128
+            return 512 if self.key in ("rot", "rot-tens", "hyb") else 128
         return 16384
 
     def run(self, name, p, guard_s):
@@ -407,12 +416,15 @@ def headline(quick: bool):
                    s_per_s=sps, realtime_factor=1.0 / sps, target_s_per_s=target, met=sps <= target,
                    time_per_step_s=m["wall_s"] / m["steps"])
         recs.append(rec)
-        rows.append([label, m["n_independent"], f"{m['t_end_s']:g} s", m["steps"], f"{sps:.3g} s",
+        setting = (f"gen-alpha, dt {m['dt_s']:g} s, rho_inf {m['rho_inf']:g}" if m["solver"] == "generalized_alpha"
+                   else f"{SHORT[m['solver']]}, rtol {sc.simulation.rtol:g}, atol {sc.simulation.atol:g}")
+        rec["setting"] = setting
+        rows.append([label, setting, m["n_independent"], f"{m['t_end_s']:g} s", m["steps"], f"{sps:.3g} s",
                      f"{1 / sps:.3g}x" if sps < 1 else f"1/{sps:.3g}", f"<= {target:g} s",
                      "yes" if sps <= target else "NO", f"{target / sps:.2g}x", fmt_time(rec["time_per_step_s"]),
                      f"{first:.1f} s"])
         print(f"  {label}: {sps:.3g} s per simulated s (first call {first:.1f} s)", flush=True)
-    t = table(["model (simulate, generalized-alpha dt 1e-4 s, rho_inf 0.9)", "unknowns", "window", "steps",
+    t = table(["model (simulate, default solver)", "solver", "unknowns", "window", "steps",
                "wall / simulated s", "vs real time", "target", "met?", "margin", "per step", "first call"],
               rows, "Headline: simulate() with the default solver, after compilation")
     return recs, t

@@ -265,6 +265,40 @@ def test_release_undamped_energy_is_conserved(release):
     assert drift < 1e-9
 
 
+def test_rotational_default_solver_release(release):
+    """Without ``[simulation] solver`` the rotational model runs on its default, Dopri8 at
+    rtol 1e-6 (transient.default_solver, chosen by benchmarks/bench_transient.py): the same
+    undamped 10 s release.
+
+    * the torsional frequency is the modal one itself, with no step-size error to correct:
+      1e-4 (the generalized-alpha run above shows (omega dt)^2 / 12 = 1.3e-3 before its
+      midpoint correction, so this could not pass by accident);
+    * the energy: an explicit method does not conserve it, it drifts by the error accepted per
+      step; at rtol 1e-6 it stays within 1e-3 of the vibration energy put in over 10 s (1000
+      periods; measured 4.3e-4, drift 3.8e-4), against 3.5e-9 for the midpoint rule above:
+      why the thesis' undamped runs name generalized_alpha in their scenes.
+    """
+    text = substitute(scene_text("sim_two_pulley_release.toml"), ("CA = 3.33 ", "CA = 0.0 "),
+                      ('solver = "generalized_alpha" ', "# solver "))
+    sc = loads_scene(text)
+    assert sc.simulation.solver is None and transient.default_solver(sc) == "dopri8"
+    res = _simulate(sc, 10.0, "release, undamped, default solver")
+    assert res.meta["solver"] == "dopri8"
+    f_modal = release["modes"].frequencies_hz[1]
+    f_sim = _dominant(res.t, _col(res, "pulley_speeds_rpm", "alternator"))
+    st = release["statics"]
+    energy = _energy_fn(sc, st.inst)
+    E = np.asarray(energy(jnp.asarray(res.y)))
+    E_static = float(energy(jnp.concatenate([jnp.asarray(st.qi), jnp.zeros(2)])[None])[0])
+    put_in = E[0] - E_static
+    err = np.max(np.abs(E - E[0])) / put_in
+    drift = abs(E[_window(res, 9, 10.01)].mean() - E[_window(res, 0, 1)].mean()) / put_in
+    print(f"\n  default solver: {res.meta['steps']} steps; torsional mode {f_sim:.4f} Hz (modal {f_modal:.4f}); "
+          f"energy error {err:.1e}, drift {drift:.1e}")
+    assert abs(f_sim / f_modal - 1) < 1e-4
+    assert err < 1e-3 and drift < 1e-3
+
+
 def test_release_damped_settles_on_the_static_reactions(ref, release):
     """With belt damping both spans return to the installation tension and the bearing
     reactions to the static ones (thesis Figs. 7.5-7.7: the last row of Table 7.1).
@@ -535,6 +569,49 @@ def test_runup_centrifugal_force_unloads_fixed_centres(runup):
     print(f"  crank bearing: {np.linalg.norm(st.hub_forces_N['crank']):.1f} N at rest, drop {drop:.1f} N "
           f"(2 rhoA v^2 / lam cos(beta/2) = {estimate:.1f} N)")
     assert abs(drop / estimate - 1) < 1e-3
+
+
+def test_free_crank_turned_by_a_torque_carries_its_centrifugal_force():
+    """Rotational model, crank free (not driven) and accelerated from rest by a constant moment
+    in the belt's direction of travel, both pulleys free, fixed centres, no damping, transport on.
+
+    * the drive turns as one inertia: the crank's acceleration is M / J_eff with J_eff = J_c +
+      J_a (R_c / R_a)^2 and the belt wrapped on each pulley (fit of the speed over 2 s: 1e-5;
+      the torsional oscillation the moment starts adds a ripple);
+    * the centrifugal force follows the crank's actual speed (c = R theta', as in the thesis;
+      the nominal travel of a free crank is its speed_rpm, here 0): over the last 0.5 s the span
+      force is the elastic tension minus rhoA c^2 lam_s, c = R_c theta'_c / lam, with each span's
+      stretch lam_s, to 1e-6 of the installation tension, and the fall (46 N) is there (> 40 N).
+    """
+    M = -5.0  # N m, clockwise: the route's direction of travel ("cw")
+    text = substitute(scene_text("two_pulley_T600.toml"), ('fidelity = "ancf"', 'fidelity = "rotational"'))
+    text += f'\n[[torque]]\npulley = "crank"\nmean_Nm = {M}\nt_start_s = 0.0\n'
+    sc = loads_scene(text)
+    assert sc.model.has("transport") and not sc.pulley("crank").driven
+    res = _simulate(sc, 2.0, "free crank, -5 N m from rest")
+    st = statics.analyse_statics(sc)
+    inst, lam, rhoA = st.inst, st.stretch, float(sc.belt.rhoA)
+    (Jc, Rc), (Ja, Ra) = [(float(sc.pulley(n).inertia), float(sc.pulley(n).radius)) for n in ("crank", "alternator")]
+    m_arc = rhoA * np.asarray(inst.radii) * np.asarray(inst.wrap) / lam
+    J_eff = Jc + m_arc[0] * Rc**2 + (Ja + m_arc[1] * Ra**2) * (Rc / Ra) ** 2
+    w = _col(res, "pulley_speeds_rpm", "crank") * 2 * math.pi / 60
+    alpha = np.polyfit(res.t, w, 1)[0]
+    late = res.t > 1.5
+    v = np.abs(w[late]) * Rc
+    force, tension = res.channels["span_forces_N"][late], res.channels["span_tensions_N"][late]
+    # each span's stretch from its Green-Lagrange tension EA (l^2 - 1) l / 2: the momentum flux
+    # rhoA c^2 l_s of belt moving at c = v / lam (m/s of unstretched belt)
+    EA = float(sc.belt.EA)
+    l_s = 1 + tension / EA
+    for _ in range(4):
+        l_s = l_s - (EA * (l_s**2 - 1) * l_s / 2 - tension) / (EA * (3 * l_s**2 - 1) / 2)
+    fall = rhoA * (v[:, None] / lam) ** 2 * l_s
+    print(f"\n  free crank: acceleration {alpha:.3f} rad/s^2 (M / J_eff {M / J_eff:.3f}); at {v.mean():.1f} m/s "
+          f"the span force is {np.mean(tension - force):.2f} N below the tension (rhoA v^2 / lam {fall.mean():.2f} N)")
+    assert abs(alpha / (M / J_eff) - 1) < 1e-5
+    assert np.max(np.abs((tension - force) - fall)) < 1e-6 * float(sc.belt.static_tension)
+    assert fall.mean() > 40.0
+    np.testing.assert_allclose(res.channels["belt_speed_m_s"][late], v, rtol=1e-9)
 
 
 # =========================================================================== 7.2.1.2: tensioner installation
