@@ -44,7 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import ancf, span
+from beltjax import ancf, geometry, span
 from beltjax.ancf import Section
 from beltjax.scene import ARM, TENSIONER, Scene
 
@@ -268,10 +268,25 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
         centers = centers + shift[:n]
     senses = jnp.asarray(scene.route.senses, dtype=qi.dtype)
     nxt = (np.arange(n) + 1) % n
-    slide = senses * radii * phi  # rim travel of each pulley along the belt (m)
-    t_hat = inst.span_tangent
-    start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
-    end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
+    if scene.tensioner is None:
+        # fixed centres: the installed tangent points, each end node slid along its span by the
+        # rim travel of its pulley (belt fed into or drawn out of the span)
+        slide = senses * radii * phi  # rim travel of each pulley along the belt (m)
+        t_hat = inst.span_tangent
+        start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
+        end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
+    else:
+        # the idler moves with the arm: the exact tangent points of the moved layout, and the belt
+        # on each arc, which turns with its pulley, gains R s dalpha where its end point moved by
+        # dalpha (rad, CCW) from the installed one; the end node slides by the rim travel less that
+        # (s R (phi - dalpha)).  Spans and arcs then keep the belt's length exactly as the arm
+        # swings (moving the tangent points rigidly with the centres was exact to first order only).
+        tl = geometry.tangent_line(centers, radii, senses, centers[nxt], radii[nxt], senses[nxt])
+        t_hat = tl.tangent
+        d_dep = _turn(inst.span_start - inst.centers, tl.start - centers)
+        d_arr = _turn(inst.span_end - inst.centers[nxt], tl.end - centers[nxt])
+        start = tl.start + (senses * radii * (phi - d_dep))[:, None] * t_hat
+        end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - d_arr))[:, None] * t_hat
     parts = []
     for s in range(n):
         if spans is None:  # rotational: a bar between the end nodes; slopes are not used
@@ -303,6 +318,11 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
             cm = cm + shift[-1]
         bodies.append(jnp.concatenate([cm, theta[None]]))
     return jnp.concatenate(parts + bodies)
+
+
+def _turn(a, b):
+    """Angle (rad, CCW, in (-pi, pi]) from the 2-vectors a to b, row by row."""
+    return jnp.arctan2(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0], jnp.sum(a * b, axis=-1))
 
 
 def split_full(q, scene: Scene):
