@@ -325,6 +325,11 @@ def _turn(a, b):
     return jnp.arctan2(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0], jnp.sum(a * b, axis=-1))
 
 
+def n_span_coordinates(scene: Scene) -> int:
+    """Number of span coordinates at the head of the full vector (4 (N+1) per span)."""
+    return len(scene.route.order) * 4 * (span_elements(scene) + 1)
+
+
 def split_full(q, scene: Scene):
     """Full vector -> (spans (n, 4 (N+1)), bodies (nb, 3))."""
     n = len(scene.route.order)
@@ -596,7 +601,16 @@ def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None
     phi = lambda x, tt: full_coordinates(x, scene, inst, t=None if steady else tt)  # noqa: E731
     rate = lambda x, tt: jax.jvp(phi, (x, tt), (qi_dot, one))[1]  # noqa: E731
     q, v = jax.jvp(phi, (qi, t), (qi_dot, one))
-    _, gamma = jax.jvp(rate, (qi, t), (qi_dot, one))
+    if flexible(scene):
+        _, gamma = jax.jvp(rate, (qi, t), (qi_dot, one))
+    else:
+        # massless spans (bars): their end nodes' accelerations carry no inertia, so only the
+        # bodies' convective accelerations are formed (the span part would be multiplied by zero
+        # mass; with a tensioner it is the second derivative of the tangent geometry)
+        ns = n_span_coordinates(scene)
+        body_rate = lambda x, tt: rate(x, tt)[ns:]  # noqa: E731
+        _, gamma_b = jax.jvp(body_rate, (qi, t), (qi_dot, one))
+        gamma = jnp.concatenate([jnp.zeros(ns, dtype=q.dtype), gamma_b])
     J = None if skip_jacobian else jax.jacfwd(phi)(qi, t)
     if steady:
         F = full_forces(q, v, scene, inst, transport_speed(scene, inst, speed))

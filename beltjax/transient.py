@@ -430,9 +430,15 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         if code != 0:
             name = _result_name(code)
             why = _RESULT_MESSAGES.get(name, name)
+            if fixed:
+                advice = f"try a smaller simulation.dt_s (now {dt:.3g} s)"
+            elif name == "max_steps_reached":
+                advice = (f"the model may be too stiff for an explicit solver: try simulation.solver = "
+                          f'"generalized_alpha", or raise simulation.max_steps (now {max_steps})')
+            else:
+                advice = f"try a smaller simulation.rtol (now {scene.simulation.rtol:g})"
             raise TransientError(
-                f"solver {scene.simulation.solver} failed between t = {ts[0]:.4g} s and {ts[-1]:.4g} s: "
-                f"{why}; try a smaller simulation.dt_s (now {dt:.3g} s)"
+                f"solver {scene.simulation.solver} failed between t = {ts[0]:.4g} s and {ts[-1]:.4g} s: {why}; {advice}"
             )
         ys = np.asarray(ys)
         if not np.all(np.isfinite(ys)):

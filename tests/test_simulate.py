@@ -571,6 +571,20 @@ def test_runup_centrifugal_force_unloads_fixed_centres(runup):
     assert abs(drop / estimate - 1) < 1e-3
 
 
+def test_explicit_solver_out_of_steps_says_what_to_do():
+    """An adaptive explicit solver that runs out of steps (here simulation.max_steps = 20 for a
+    0.2 s run of the rotational bench, which needs about 100) fails with one line that names
+    the solver, the time window, the cause and the remedy for a stiff model: generalized-alpha."""
+    text = substitute(scene_text("two_pulley_T600.toml"), ('fidelity = "ancf"', 'fidelity = "rotational"'))
+    sc = loads_scene(text + "\n[initial]\nrotation_deg = { alternator = 2.0 }\n[simulation]\nmax_steps = 20\n")
+    with pytest.raises(transient.TransientError) as err:
+        transient.simulate(sc, 0.2)
+    msg = str(err.value)
+    print(f"\n  {msg}")
+    assert "\n" not in msg and msg.startswith("solver dopri8 failed between t = 0 s")
+    assert "max_steps" in msg and 'simulation.solver = "generalized_alpha"' in msg
+
+
 def test_free_crank_turned_by_a_torque_carries_its_centrifugal_force():
     """Rotational model, crank free (not driven) and accelerated from rest by a constant moment
     in the belt's direction of travel, both pulleys free, fixed centres, no damping, transport on.
