@@ -450,10 +450,8 @@ def _exact_belt_moment(sc, st, speed):
     th = math.radians(st.tensioner_angle_deg)
     k = sc.route.order.index("tensioner")
     g = sc.geometry(jnp.asarray(th), check=False)
-    T, EA = np.asarray(st.span_tensions_N), float(sc.belt.EA)
-    lam_s = 1 + T / EA
-    for _ in range(4):
-        lam_s = lam_s - (EA * (lam_s**2 - 1) * lam_s / 2 - T) / (EA * (3 * lam_s**2 - 1) / 2)
+    T = np.asarray(st.span_tensions_N)
+    lam_s = stretch_for_tension(T, float(sc.belt.EA))
     F = T - float(sc.belt.rhoA) * (speed / st.stretch) ** 2 * lam_s
     force = F[k] * np.asarray(g.span_tangent[k]) - F[k - 1] * np.asarray(g.span_tangent[k - 1])
     r = np.asarray(sc.tensioner.idler_center(th) - sc.tensioner.pivot)

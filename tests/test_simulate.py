@@ -615,10 +615,7 @@ def test_free_crank_turned_by_a_torque_carries_its_centrifugal_force():
     force, tension = res.channels["span_forces_N"][late], res.channels["span_tensions_N"][late]
     # each span's stretch from its Green-Lagrange tension EA (l^2 - 1) l / 2: the momentum flux
     # rhoA c^2 l_s of belt moving at c = v / lam (m/s of unstretched belt)
-    EA = float(sc.belt.EA)
-    l_s = 1 + tension / EA
-    for _ in range(4):
-        l_s = l_s - (EA * (l_s**2 - 1) * l_s / 2 - tension) / (EA * (3 * l_s**2 - 1) / 2)
+    l_s = span.stretch_for_tension(tension, float(sc.belt.EA))
     fall = rhoA * (v[:, None] / lam) ** 2 * l_s
     print(f"\n  free crank: acceleration {alpha:.3f} rad/s^2 (M / J_eff {M / J_eff:.3f}); at {v.mean():.1f} m/s "
           f"the span force is {np.mean(tension - force):.2f} N below the tension (rhoA v^2 / lam {fall.mean():.2f} N)")
