@@ -814,6 +814,15 @@ def _plain_x(ax, ticks=None):
     ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
 
 
+def _save(fig, name: str):
+    """Lay out, write figures/<name> (110 dpi) and close ``fig``; returns the path."""
+    fig.tight_layout()
+    path = FIGURES / name
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def figures(mesh, trans, fid, eff):
     FIGURES.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -866,11 +875,7 @@ def figures(mesh, trans, fid, eff):
         for a in axs:
             a.grid(True, which="both", alpha=0.3)
             a.legend(fontsize=7)
-        fig.tight_layout()
-        p = FIGURES / "atlas_mesh.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        paths.append(p)
+        paths.append(_save(fig, "atlas_mesh.png"))
         # costs
         fig, axs = plt.subplots(1, 2, figsize=(12, 4.8))
         for gname, g in mesh.items():
@@ -900,11 +905,7 @@ def figures(mesh, trans, fid, eff):
             a.grid(True, which="both", alpha=0.3)
         axs[0].legend(fontsize=7, loc="upper left")
         axs[1].legend(fontsize=7)
-        fig.tight_layout()
-        p = FIGURES / "atlas_mesh_cost.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        paths.append(p)
+        paths.append(_save(fig, "atlas_mesh_cost.png"))
     if trans:
         keys = list(trans["cases"])
         fig, axs = plt.subplots(1, len(keys), figsize=(4.6 * len(keys), 4.6))
@@ -940,11 +941,7 @@ def figures(mesh, trans, fid, eff):
             a.legend(fontsize=7)
         axs[0].set_ylabel("max rel. error of the response < 1 kHz")
         fig.suptitle("Transient solvers: error vs cost (labels: dt or rtol); from results/transient.json", fontsize=10)
-        fig.tight_layout()
-        p = FIGURES / "atlas_transient.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        paths.append(p)
+        paths.append(_save(fig, "atlas_transient.png"))
     if fid and "_series" in fid:
         S = fid["_series"]
         fig, axs = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
@@ -960,11 +957,7 @@ def figures(mesh, trans, fid, eff):
         for a in axs:
             a.grid(alpha=0.3)
             a.legend(fontsize=8)
-        fig.tight_layout()
-        p = FIGURES / "atlas_fidelity.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        paths.append(p)
+        paths.append(_save(fig, "atlas_fidelity.png"))
     if eff:
         s = eff["two_pulley"]
         names = list(s["variants"])
@@ -981,11 +974,7 @@ def figures(mesh, trans, fid, eff):
             a.grid(axis="x", alpha=0.3)
         fig.suptitle(f"Effects: transient right-hand side of the {s['label']} drive (a listed effect costs; "
                      "an unlisted one is not traced)", fontsize=10)
-        fig.tight_layout()
-        p = FIGURES / "atlas_effects.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        paths.append(p)
+        paths.append(_save(fig, "atlas_effects.png"))
     return paths
 
 
