@@ -116,10 +116,15 @@ def n_independent(scene: Scene) -> int:
     return n_rigid(scene) + per_span * len(scene.route.order)
 
 
+def n_span_coordinates(scene: Scene) -> int:
+    """Number of span coordinates at the head of the full vector (4 (N+1) per span)."""
+    return len(scene.route.order) * 4 * (span_elements(scene) + 1)
+
+
 def n_full(scene: Scene) -> int:
     """Number of full coordinates (spans, then 3 per body)."""
     n = len(scene.route.order)
-    return 4 * (span_elements(scene) + 1) * n + 3 * (n + (1 if scene.tensioner is not None else 0))
+    return n_span_coordinates(scene) + 3 * (n + (1 if scene.tensioner is not None else 0))
 
 
 def body_names(scene: Scene) -> list[str]:
@@ -325,16 +330,10 @@ def _turn(a, b):
     return jnp.arctan2(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0], jnp.sum(a * b, axis=-1))
 
 
-def n_span_coordinates(scene: Scene) -> int:
-    """Number of span coordinates at the head of the full vector (4 (N+1) per span)."""
-    return len(scene.route.order) * 4 * (span_elements(scene) + 1)
-
-
 def split_full(q, scene: Scene):
     """Full vector -> (spans (n, 4 (N+1)), bodies (nb, 3))."""
-    n = len(scene.route.order)
-    ns = 4 * (span_elements(scene) + 1)
-    return q[: n * ns].reshape(n, ns), q[n * ns :].reshape(-1, 3)
+    ns = n_span_coordinates(scene)
+    return q[:ns].reshape(len(scene.route.order), -1), q[ns:].reshape(-1, 3)
 
 
 def installed_coordinates(scene: Scene, inst: Installation):

@@ -162,10 +162,10 @@ def vector_field(scene: Scene, inst):
 
 def default_solver(scene: Scene) -> str:
     """The solver used when ``[simulation] solver`` is not given, chosen by measurement
-    (benchmarks/bench_transient.py, benchmarks/README.md section 3): ``dopri8`` for the
+    (benchmarks/bench_transient.py, benchmarks/README.md section 4): ``dopri8`` for the
     rotational fidelity (a few smooth, non-stiff coordinates: at equal accuracy the explicit
     8th-order pair takes far fewer evaluations than a second-order implicit step, whose phase
-    error on the 500 Hz arm mode of the tensioner bench is 26 % after 0.5 s at dt = 1e-4 s),
+    error on the 499 Hz arm mode of the tensioner bench is 51 % after 0.5 s at dt = 1e-4 s),
     ``generalized_alpha`` for the hybrid model (stiff: axial span modes of 1-2 kHz and above)."""
     if scene.simulation.solver is not None:
         return scene.simulation.solver
