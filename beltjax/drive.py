@@ -31,6 +31,10 @@ power-port picture) and ``gamma = dJ/dt q_i_dot``.  ``F`` holds only the effects
 the scene lists (``[model] effects``): elastic forces always, ``transport``
 (gyroscopic + centrifugal terms of the moving belt) and ``gravity`` when asked
 for; an effect not listed is not traced into the compiled function.
+The rotational model's spans are massless bars, so the same equations need only the bodies'
+rows of ``J`` and the span lengths ``l(q_i)`` (:func:`span_lengths`, closed form):
+:func:`reduced_accelerations` takes that road for it (tests/test_fast_paths.py checks it
+against the dense ``J^T M J`` solve with every effect).
 
 Units: SI throughout (m, rad, N, N m, kg, kg m^2, s).
 """
@@ -256,44 +260,13 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     (x, y) of a pulley is the centre of mass of the pulley (offset by cm_offset, turning
     with it) and of its wrapped belt (on the axis).
     """
-    order = scene.route.order
-    n = len(order)
     N = span_elements(scene)
     _, spans = _split(qi, scene)
     phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
-    if scene.tensioner is not None:
-        tt = scene.tensioner
-        pivot_shift = 0.0 if shift is None else shift[-1]
-        centers, radii = scene.layout(theta)
-        is_idler = jnp.asarray([name == TENSIONER for name in order], dtype=qi.dtype)
-        centers = centers + is_idler[:, None] * pivot_shift
-    else:
-        centers, radii = inst.centers, inst.radii
-    if shift is not None:
-        centers = centers + shift[:n]
-    senses = jnp.asarray(scene.route.senses, dtype=qi.dtype)
-    nxt = (np.arange(n) + 1) % n
-    if scene.tensioner is None:
-        # fixed centres: the installed tangent points, each end node slid along its span by the
-        # rim travel of its pulley (belt fed into or drawn out of the span)
-        slide = senses * radii * phi  # rim travel of each pulley along the belt (m)
-        t_hat = inst.span_tangent
-        start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
-        end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
-    else:
-        # the idler moves with the arm: the exact tangent points of the moved layout, and the belt
-        # on each arc, which turns with its pulley, gains R s dalpha where its end point moved by
-        # dalpha (rad, CCW) from the installed one; the end node slides by the rim travel less that
-        # (s R (phi - dalpha)).  Spans and arcs then keep the belt's length exactly as the arm
-        # swings (moving the tangent points rigidly with the centres was exact to first order only).
-        tl = geometry.tangent_line(centers, radii, senses, centers[nxt], radii[nxt], senses[nxt])
-        t_hat = tl.tangent
-        d_dep = _turn(inst.span_start - inst.centers, tl.start - centers)
-        d_arr = _turn(inst.span_end - inst.centers[nxt], tl.end - centers[nxt])
-        start = tl.start + (senses * radii * (phi - d_dep))[:, None] * t_hat
-        end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - d_arr))[:, None] * t_hat
+    centers, radii = _centers(theta, scene, inst, shift)
+    start, end, t_hat = _span_ends(phi, centers, radii, scene, inst)
     parts = []
-    for s in range(n):
+    for s in range(len(scene.route.order)):
         if spans is None:  # rotational: a bar between the end nodes; slopes are not used
             slope = inst.stretch * t_hat[s]
             nodes = jnp.concatenate([start[s], slope, end[s], slope])
@@ -303,12 +276,66 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
         nodes = jnp.concatenate([start[s], body[:2], body[2:-2], end[s], body[-2:]])
         parts.append(nodes)
         assert nodes.shape[0] == 4 * (N + 1)
+    return jnp.concatenate(parts + [_body_coordinates(phi, theta, centers, scene, inst, t, shift)])
+
+
+def _centers(theta, scene: Scene, inst: Installation, shift=None):
+    """Pulley centres (n, 2) m and radii (n,) m in route order at arm angle theta (rad),
+    bearings shifted by ``shift`` (see :func:`full_coordinates`)."""
+    n = len(scene.route.order)
+    if scene.tensioner is not None:
+        centers, radii = scene.layout(theta)
+        if shift is not None:
+            is_idler = jnp.asarray([name == TENSIONER for name in scene.route.order], dtype=centers.dtype)
+            centers = centers + is_idler[:, None] * shift[-1]
+    else:
+        centers, radii = inst.centers, inst.radii
+    if shift is not None:
+        centers = centers + shift[:n]
+    return centers, radii
+
+
+def _span_ends(phi, centers, radii, scene: Scene, inst: Installation):
+    """Span end nodes (start, end, each (n, 2) m) and span directions (n, 2) of the kinematic
+    map, for pulley rotation perturbations phi (n,) rad, centres (n, 2) m and radii (n,) m
+    (:func:`_centers`).
+    end - start is along the direction: the span's length is (end - start) . t_hat."""
+    n = len(scene.route.order)
+    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
+    nxt = (np.arange(n) + 1) % n
+    if scene.tensioner is None:
+        # fixed centres: the installed tangent points, each end node slid along its span by the
+        # rim travel of its pulley (belt fed into or drawn out of the span)
+        slide = senses * radii * phi  # rim travel of each pulley along the belt (m)
+        t_hat = inst.span_tangent
+        start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
+        end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
+        return start, end, t_hat
+    # the idler moves with the arm: the exact tangent points of the moved layout, and the belt
+    # on each arc, which turns with its pulley, gains R s dalpha where its end point moved by
+    # dalpha (rad, CCW) from the installed one; the end node slides by the rim travel less that
+    # (s R (phi - dalpha)).  Spans and arcs then keep the belt's length exactly as the arm
+    # swings (moving the tangent points rigidly with the centres was exact to first order only).
+    tl = geometry.tangent_line(centers, radii, senses, centers[nxt], radii[nxt], senses[nxt])
+    t_hat = tl.tangent
+    d_dep = _turn(inst.span_start - inst.centers, tl.start - centers)
+    d_arr = _turn(inst.span_end - inst.centers[nxt], tl.end - centers[nxt])
+    start = tl.start + (senses * radii * (phi - d_dep))[:, None] * t_hat
+    end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - d_arr))[:, None] * t_hat
+    return start, end, t_hat
+
+
+def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=None, shift=None):
+    """(x, y, angle) of every body, flattened (m, rad): pulleys in route order, then the arm
+    (see :func:`full_coordinates`)."""
+    order = scene.route.order
+    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
     angle = phi if t is None else phi + senses * belt_travel(scene, t) / inst.radii
     unbalance = scene.model.has("unbalance")
     bodies = []
     if unbalance:  # the body (x, y) is the centre of mass of pulley + wrapped belt
         m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
-    for i in range(n):
+    for i in range(len(order)):
         pos = centers[i]
         if unbalance and order[i] != TENSIONER:
             p = scene.pulley(order[i])
@@ -322,7 +349,35 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
         if shift is not None:
             cm = cm + shift[-1]
         bodies.append(jnp.concatenate([cm, theta[None]]))
-    return jnp.concatenate(parts + bodies)
+    return jnp.concatenate(bodies)
+
+
+def span_lengths(qi, scene: Scene, inst: Installation):
+    """Stretched span lengths (m), shape (n,): the distance between each span's end nodes in
+    the kinematic map (:func:`full_coordinates`).  The rotational model's spans are bars of
+    these lengths.
+
+    In closed form: l = L + r dpsi + s' R' phi' - s R phi, with L the tangent length of the
+    (moved) layout, r = s R - s' R' the signed radius difference of the span's pulleys (from
+    ``s R`` to ``s' R'``) and dpsi (rad) how far the span's direction turned from the installed
+    one: both tangent points of a span turn with its direction, so the end slides of
+    :func:`_span_ends` are s R (phi - dpsi) and s' R' (phi' - dpsi).
+    """
+    phi, theta = angles_and_arm(qi, scene, inst)
+    senses = jnp.asarray(scene.route.senses, dtype=qi.dtype)
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
+    centers, radii = _centers(theta, scene, inst)
+    sr = senses * radii
+    slides = sr[nxt] * phi[nxt] - sr * phi
+    if scene.tensioner is None:
+        return inst.span_length + slides
+    d = centers[nxt] - centers
+    D2 = jnp.sum(d * d, axis=-1)
+    r = sr - sr[nxt]
+    L = jnp.sqrt(D2 - r * r)
+    t = (L[:, None] * d + r[:, None] * jnp.stack([-d[:, 1], d[:, 0]], axis=-1)) / D2[:, None]
+    dpsi = _turn(inst.span_tangent, t)
+    return L + r * dpsi + slides
 
 
 def _turn(a, b):
@@ -444,7 +499,11 @@ def _bar_energy(e, L0, EA, rhoA, c):
     1/2 rhoA c^2 l^2 / L0 acts as a negative potential (hub force reduced by rhoA v^2).
     """
     d = e[4:6] - e[0:2]
-    l2 = d @ d
+    return _bar_energy_l2(d @ d, L0, EA, rhoA, c)
+
+
+def _bar_energy_l2(l2, L0, EA, rhoA, c):
+    """:func:`_bar_energy` of a bar of squared length l2 (m^2)."""
     eps = 0.5 * (l2 / L0**2 - 1.0)
     return 0.5 * EA * L0 * eps**2 - 0.5 * rhoA * c**2 * l2 / L0
 
@@ -652,22 +711,47 @@ class ReducedMass(NamedTuple):
     """What the structured solve of :func:`reduced_accelerations` keeps of a drive (per run).
 
     M_full: full mass matrix; M_s = M_full[idx] (rows of the span coordinates); chol: Cholesky
-    factor (lower) of the constant span block M_ss = M_full[idx][:, idx] (None without spans).
+    factor (lower) of the constant span block M_ss = M_full[idx][:, idx] (None without spans);
+    m_body: the diagonal of the bodies' block (:func:`body_masses`, kg, kg m^2).
     """
 
     M_full: jax.Array
     M_s: jax.Array | None
     chol: jax.Array | None
+    m_body: jax.Array
 
 
 def reduced_mass(scene: Scene, inst: Installation, M_full=None) -> ReducedMass:
     """The constant parts of M_ii = J^T M J for :func:`reduced_accelerations` (factor once per run)."""
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
+    ns = n_span_coordinates(scene)
+    m_body = jnp.diagonal(M)[ns:]
     idx = span_coordinate_index(scene)
     if idx.size == 0:
-        return ReducedMass(M, None, None)
+        return ReducedMass(M, None, None, m_body)
     M_s = M[idx]
-    return ReducedMass(M, M_s, jnp.linalg.cholesky(M_s[:, idx]))
+    return ReducedMass(M, M_s, jnp.linalg.cholesky(M_s[:, idx]), m_body)
+
+
+def _mass_times(x, scene: Scene, rm: ReducedMass):
+    """M_full @ x by its block structure (x: (n_full,) or (n_full, k)): the span block by a matrix
+    product (flexible spans only; the rotational model's bars are massless), the diagonal body
+    block elementwise.  Same as ``rm.M_full @ x``; at the few coordinates of a rotational drive
+    it saves the fixed cost of XLA's dot calls in a vector field evaluated ~1e5 times per s."""
+    ns = n_span_coordinates(scene)
+    xb = x[ns:]
+    body = (rm.m_body if x.ndim == 1 else rm.m_body[:, None]) * xb
+    if not flexible(scene):
+        return jnp.concatenate([jnp.zeros_like(x[:ns]), body])
+    return jnp.concatenate([rm.M_full[:ns, :ns] @ x[:ns], body])
+
+
+def _small_matmul_tn(A, B):
+    """A^T @ B for a tall A (n, k) and B (n,) or (n, m) with small k, m, as a fused multiply and
+    sum (no dot call)."""
+    if B.ndim == 1:
+        return jnp.sum(A * B[:, None], axis=0)
+    return jnp.sum(A[:, :, None] * B[:, None, :], axis=0)
 
 
 def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
@@ -681,14 +765,14 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     O(n^2) per call instead of forming J^T M J (O(n_full^2 n)) and an LU (O(n^3)).  Same
     equations as ``jnp.linalg.solve(*reduced_system(...))`` to round-off.
     """
+    if not flexible(scene):
+        return _bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed)
     nr = n_rigid(scene)
     idx = span_coordinate_index(scene)
-    M = rm.M_full
     _, _, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
-    r = F - M @ gamma
-    F_r = J_r.T @ r
-    MJ_r = M @ J_r
-    M_rr = J_r.T @ MJ_r
+    r = F - _mass_times(gamma, scene, rm)
+    F_r = _small_matmul_tn(J_r, r)
+    M_rr = _small_matmul_tn(J_r, _mass_times(J_r, scene, rm))
     if idx.size == 0:
         return _small_spd_solve(M_rr, F_r)
     F_s = r[idx]
@@ -702,6 +786,47 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     return jnp.concatenate([a_r, X[:, nr] - X[:, :nr] @ a_r])
 
 
+def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
+    """:func:`reduced_accelerations` of the rotational model (rad/s^2), from the span lengths.
+
+    Its spans are massless bars: their nodes carry no inertia, and their forces reach q_i
+    only through the span lengths l(q_i) (:func:`span_lengths`, the same kinematic map), so
+    F_ii = J_b^T (F_b - M_b gamma_b) - (dl/dq_i)^T (N + CA/L0 dl/dt) with the bodies' rows
+    J_b of J and the bars' axial forces N = dV/dl (Green-Lagrange, less the centrifugal
+    term: :func:`_bar_energy`).  Same equations as the general path to round-off
+    (tests/test_fast_paths.py), about 3x cheaper: the span nodes' coordinates and their
+    derivatives are never formed.
+    """
+    steady = t is None
+    tt = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
+    one = jnp.zeros_like(tt) if steady else jnp.ones_like(tt)
+
+    def bodies(x, time):
+        phi, theta = angles_and_arm(x, scene, inst)
+        centers, _ = _centers(theta, scene, inst)
+        return _body_coordinates(phi, theta, centers, scene, inst, None if steady else time)
+
+    b, b_dot = jax.jvp(bodies, (qi, tt), (qi_dot, one))
+    _, gamma_b = jax.jvp(lambda x, time: jax.jvp(bodies, (x, time), (qi_dot, one))[1], (qi, tt), (qi_dot, one))
+    J_b = jax.jacfwd(bodies)(qi, tt)
+    l, J_l = span_lengths(qi, scene, inst), jax.jacfwd(span_lengths)(qi, scene, inst)
+    B, B_dot = b.reshape(-1, 3), b_dot.reshape(-1, 3)
+    if steady:
+        c = transport_speed(scene, inst, speed)
+    else:
+        d = drive_pulley(scene)  # the drive pulley's actual rim speed (transient_transport_speed)
+        c = scene.route.senses[d] * inst.radii[d] * B_dot[d, 2] / inst.stretch
+    L0 = element_length(scene, inst)
+    cc = c if scene.model.has("transport") else 0.0
+    N = jax.vmap(jax.grad(_bar_energy_l2), in_axes=(0, 0, None, None, None))(l * l, L0, scene.belt.EA, scene.belt.rhoA,
+                                                                            cc) * (2 * l)
+    if not steady and scene.model.has("belt_damping"):
+        N = N + scene.belt.CA / L0 * jnp.sum(J_l * qi_dot, axis=1)
+    F_b = body_forces(B, scene, inst, None if steady else B_dot, None if steady else tt).reshape(-1)
+    F_i = _small_matmul_tn(J_b, F_b - rm.m_body * gamma_b) - _small_matmul_tn(J_l, N)
+    return _small_spd_solve(_small_matmul_tn(J_b, rm.m_body[:, None] * J_b), F_i)
+
+
 #: largest rigid block solved by the unrolled Cholesky of :func:`_small_spd_solve`
 UNROLLED_SOLVE_MAX = 8
 
@@ -709,27 +834,22 @@ UNROLLED_SOLVE_MAX = 8
 def _small_spd_solve(A, b):
     """A^-1 b for a small symmetric positive definite A (a mass matrix of the rigid coordinates).
 
-    Up to :data:`UNROLLED_SOLVE_MAX` unknowns by a Cholesky factorisation unrolled into scalar
-    operations, which XLA fuses: the LAPACK calls of ``jnp.linalg.solve`` cost more in fixed
-    overhead than the arithmetic at these sizes (a rotational drive's vector field is a few
-    microseconds, evaluated tens of thousands of times per simulated second).
+    Up to :data:`UNROLLED_SOLVE_MAX` unknowns by Gauss-Jordan elimination unrolled over the
+    columns, each a whole-array update that XLA fuses (no pivoting: A is SPD, for which
+    elimination without pivoting is stable).  The LAPACK calls of ``jnp.linalg.solve`` cost
+    more in fixed overhead than the arithmetic at these sizes, and so does a scalar-unrolled
+    Cholesky (a rotational drive's vector field is a microsecond or two, evaluated tens of
+    thousands of times per simulated second).
     """
     n = A.shape[0]
     if n > UNROLLED_SOLVE_MAX:
         return jnp.linalg.solve(A, b)
-    L = [[None] * n for _ in range(n)]
-    for j in range(n):
-        d = jnp.sqrt(A[j, j] - sum((L[j][k] * L[j][k] for k in range(j)), 0.0))
-        L[j][j] = d
-        for i in range(j + 1, n):
-            L[i][j] = (A[i, j] - sum((L[i][k] * L[j][k] for k in range(j)), 0.0)) / d
-    z = []
-    for i in range(n):
-        z.append((b[i] - sum((L[i][k] * z[k] for k in range(i)), 0.0)) / L[i][i])
-    x = [None] * n
-    for i in reversed(range(n)):
-        x[i] = (z[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), 0.0)) / L[i][i]
-    return jnp.stack(x)
+    M = jnp.concatenate([A, b[:, None]], axis=1)
+    rows = jnp.arange(n)[:, None]
+    for k in range(n):
+        pivot = M[k] / M[k, k]
+        M = jnp.where(rows == k, pivot[None, :], M - M[:, k : k + 1] * pivot[None, :])
+    return M[:, n]
 
 
 def transient_transport_speed(scene: Scene, inst: Installation, v, t):

@@ -186,7 +186,7 @@ def settings(case: str, quick: bool):
         ref.append(("generalized_alpha", dict(dt=1e-5, rho=1.0, ref=True)))
     if rot:
         ga = [(0.9, 1e-3), (0.9, 2e-4), (0.9, 1e-4), (0.9, 5e-5), (0.9, 2.5e-5), (1.0, 1e-4)]
-        tsit, dop, kv = [1e-4, 1e-6, 1e-8], [1e-4, 1e-6, 1e-9], [1e-4, 1e-6, 1e-8]
+        tsit, dop, kv = [1e-4, 1e-6, 1e-8], [1e-4, 1e-5, 1e-6, 1e-9], [1e-4, 1e-6, 1e-8]
     else:
         # outputs every 1e-4 s: steps that divide it (coarser ones would add the linear dense
         # output's error); Kvaerno5 costs 10-100 ms per step here, so it gets one or two runs
@@ -219,7 +219,7 @@ def _chunk(scene, inst, y0, ts, dt0, rtol, atol, rho, name: str, max_steps: int)
     if name == "generalized_alpha":
         ctrl = diffrax.ConstantStepSize()
     else:
-        ctrl = diffrax.PIDController(rtol=rtol, atol=atol)
+        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=transient.PCOEFF, icoeff=transient.ICOEFF)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(transient.vector_field(scene, inst)), _solver(name, rho), t0=ts[0], t1=ts[-1], dt0=dt0,
         y0=y0, saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl, max_steps=max_steps, throw=False,

@@ -1,7 +1,9 @@
 """The fast paths of the transients equal the reference formulas to round-off.
 
 * drive.reduced_accelerations (block structure of J, Schur complement on the rigid
-  coordinates) = jnp.linalg.solve(*drive.reduced_system(...)) (dense J^T M J);
+  coordinates; for the rotational model the bars' forces through the span lengths) =
+  jnp.linalg.solve(*drive.reduced_system(...)) (dense J^T M J), with every effect and load
+  the rotational model takes;
 * drive.span_coordinate_index: the span columns of dPhi/dq_i are that constant selection;
 * the generalized-alpha Newton solve with the kept permutation = jax.scipy.linalg.lu_solve.
 """
@@ -17,6 +19,7 @@ import numpy as np
 import pytest
 
 from beltjax import drive, statics
+from beltjax import scene as scene_mod
 from beltjax.scene import load_scene
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
@@ -46,6 +49,62 @@ def test_reduced_accelerations_equal_dense_solve(fidelity):
     Jf = jax.jacfwd(lambda x: drive.reduced_accelerations(x, qd, sc, inst, rm, t=t))(qi)
     Jr = jax.jacfwd(lambda x: jnp.linalg.solve(*drive.reduced_system(x, qd, sc, inst, t=t)))(qi)
     np.testing.assert_allclose(Jf, Jr, rtol=1e-8, atol=1e-8 * float(jnp.max(jnp.abs(Jr))))
+
+
+ALL_EFFECTS = ("transport", "gravity", "belt_damping", "bearing_damping", "tensioner_damping", "unbalance",
+               "speed_fluctuation")
+
+
+@pytest.mark.parametrize("base", ["tensioner_bench_stage2", "two_pulley_T600"])
+@pytest.mark.parametrize("crank_driven", [False, True])
+def test_rotational_accelerations_with_every_effect_equal_dense_solve(base, crank_driven):
+    """The rotational model's reduced accelerations (bars through the span lengths) with all
+    effects, unbalance, a [[torque]] on every body, a driven or free crank, at speed."""
+    sc = load_scene(SCENES / f"{base}.toml")
+    effects = tuple(e for e in ALL_EFFECTS if (e != "tensioner_damping" or sc.tensioner is not None)
+                    and (e != "speed_fluctuation" or crank_driven))
+    model = dataclasses.replace(sc.model, fidelity="rotational", effects=effects)
+    pulleys = tuple(
+        dataclasses.replace(p, bearing_damping=jnp.asarray(1e-3 * (k + 1)), cm_offset=jnp.asarray([1e-3, -5e-4 * k]),
+                            driven=crank_driven if k == 0 else p.driven,
+                            speed_rpm=jnp.asarray(600.0 if crank_driven else 0.0) if k == 0 else p.speed_rpm,
+                            fluctuation_amplitude_deg=jnp.asarray(1.0 if k == 0 else 0.0), fluctuation_frequency_hz=jnp.asarray(20.0))
+        for k, p in enumerate(sc.pulleys)
+    )
+    belt = dataclasses.replace(sc.belt, CA=jnp.asarray(2.5))
+    tens = None if sc.tensioner is None else dataclasses.replace(sc.tensioner, damping=jnp.asarray(0.2), arm_cm_distance=jnp.asarray(0.02))
+    free = [p.name for p in pulleys if not p.driven] + ([scene_mod.ARM] if tens is not None else [])
+    loads = tuple(
+        scene_mod.Torque(pulley=name, mean_Nm=jnp.asarray(1.5), amplitude_Nm=jnp.asarray(0.7),
+                         frequency_hz=jnp.asarray(33.0), phase_deg=jnp.asarray(10.0), t_start_s=jnp.asarray(0.0),
+                         t_end_s=None)
+        for name in free
+    )
+    sc = drive.canonical(dataclasses.replace(sc, model=model, pulleys=pulleys, belt=belt, tensioner=tens, torques=loads))
+    inst = statics.install(sc)
+    n = drive.n_independent(sc)
+    rng = np.random.default_rng(2)
+    qi = drive.installed_coordinates(sc, inst) + 1e-3 * jnp.asarray(rng.standard_normal(n))
+    qd = jnp.asarray(rng.standard_normal(n))
+    rm = drive.reduced_mass(sc, inst)
+    for t in (None, 0.013):
+        fast = drive.reduced_accelerations(qi, qd, sc, inst, rm, t=t, speed=3.0)
+        ref = jnp.linalg.solve(*drive.reduced_system(qi, qd, sc, inst, speed=3.0, t=t))
+        np.testing.assert_allclose(fast, ref, rtol=1e-10, atol=1e-10 * float(jnp.max(jnp.abs(ref))))
+
+
+def test_span_lengths_closed_form_equals_the_kinematic_map():
+    """drive.span_lengths (L + r dpsi + slides) = |end - start| of full_coordinates' bars, also far
+    from the installed state (arm swung by up to 30 deg, pulleys turned by up to 0.5 rad)."""
+    sc = _scene("rotational")
+    inst = statics.install(sc)
+    n = drive.n_independent(sc)
+    rng = np.random.default_rng(3)
+    for swing in (-30.0, -5.0, 0.0, 12.0, 30.0):
+        qi = jnp.asarray(rng.uniform(-0.5, 0.5, n)).at[-1].set(np.radians(swing))
+        E, _ = drive.split_full(drive.full_coordinates(qi, sc, inst), sc)
+        direct = jnp.linalg.norm(E[:, 4:6] - E[:, 0:2], axis=1)
+        np.testing.assert_allclose(drive.span_lengths(qi, sc, inst), direct, rtol=1e-13)
 
 
 def test_span_columns_are_the_constant_selection():
