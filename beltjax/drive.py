@@ -733,19 +733,6 @@ def reduced_mass(scene: Scene, inst: Installation, M_full=None) -> ReducedMass:
     return ReducedMass(M, M_s, jnp.linalg.cholesky(M_s[:, idx]), m_body)
 
 
-def _mass_times(x, scene: Scene, rm: ReducedMass):
-    """M_full @ x by its block structure (x: (n_full,) or (n_full, k)): the span block by a matrix
-    product (flexible spans only; the rotational model's bars are massless), the diagonal body
-    block elementwise.  Same as ``rm.M_full @ x``; at the few coordinates of a rotational drive
-    it saves the fixed cost of XLA's dot calls in a vector field evaluated ~1e5 times per s."""
-    ns = n_span_coordinates(scene)
-    xb = x[ns:]
-    body = (rm.m_body if x.ndim == 1 else rm.m_body[:, None]) * xb
-    if not flexible(scene):
-        return jnp.concatenate([jnp.zeros_like(x[:ns]), body])
-    return jnp.concatenate([rm.M_full[:ns, :ns] @ x[:ns], body])
-
-
 def _small_matmul_tn(A, B):
     """A^T @ B for a tall A (n, k) and B (n,) or (n, m) with small k, m, as a fused multiply and
     sum (no dot call)."""
@@ -763,16 +750,18 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     M_ss factored once (``rm``, :func:`reduced_mass`), F_ii = [J_r^T r, r[idx]] with
     r = F - M gamma, and the solve is by the Schur complement on the rigid coordinates:
     O(n^2) per call instead of forming J^T M J (O(n_full^2 n)) and an LU (O(n^3)).  Same
-    equations as ``jnp.linalg.solve(*reduced_system(...))`` to round-off.
+    equations as ``jnp.linalg.solve(*reduced_system(...))`` to round-off.  The rotational
+    model (massless bars) goes by the span lengths instead: :func:`_bar_accelerations`.
     """
     if not flexible(scene):
         return _bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed)
     nr = n_rigid(scene)
     idx = span_coordinate_index(scene)
     _, _, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
-    r = F - _mass_times(gamma, scene, rm)
-    F_r = _small_matmul_tn(J_r, r)
-    M_rr = _small_matmul_tn(J_r, _mass_times(J_r, scene, rm))
+    M = rm.M_full
+    r = F - M @ gamma
+    F_r = J_r.T @ r
+    M_rr = J_r.T @ (M @ J_r)
     if idx.size == 0:
         return _small_spd_solve(M_rr, F_r)
     F_s = r[idx]
