@@ -60,8 +60,6 @@ class TransientError(ValueError):
 JACOBIAN_EVERY = 200
 #: most output samples of one run (memory: every channel is kept)
 MAX_OUTPUT_SAMPLES = 2_000_000
-#: PI step-size controller of the adaptive solvers (proportional and integral gains)
-PCOEFF, ICOEFF = 0.3, 0.3
 #: Newton tolerance of the implicit steps: relative to max|y|, and absolute (units of y)
 NEWTON_RTOL, NEWTON_ATOL = 1e-9, 1e-9
 
@@ -183,10 +181,7 @@ def _solver(scene: Scene):
             rtol=NEWTON_RTOL, atol=NEWTON_ATOL,
         )
         return solver, diffrax.ConstantStepSize()
-    # PI step-size control (diffrax's default is the pure I controller, pcoeff = 0): on the
-    # rotational tensioner bench it rejects 72 of 5600 Dopri8 steps instead of 794 of 6048
-    # (2 s at rtol 1e-6, benchmarks/README.md section 4), at the same error
-    ctrl = diffrax.PIDController(rtol=sim.rtol, atol=sim.atol, pcoeff=PCOEFF, icoeff=ICOEFF)
+    ctrl = diffrax.PIDController(rtol=sim.rtol, atol=sim.atol)
     if name == "tsit5":
         return diffrax.Tsit5(), ctrl
     if name == "dopri8":

@@ -219,7 +219,7 @@ def _chunk(scene, inst, y0, ts, dt0, rtol, atol, rho, name: str, max_steps: int)
     if name == "generalized_alpha":
         ctrl = diffrax.ConstantStepSize()
     else:
-        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=transient.PCOEFF, icoeff=transient.ICOEFF)
+        ctrl = diffrax.PIDController(rtol=rtol, atol=atol)
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(transient.vector_field(scene, inst)), _solver(name, rho), t0=ts[0], t1=ts[-1], dt0=dt0,
         y0=y0, saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl, max_steps=max_steps, throw=False,
