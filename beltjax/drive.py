@@ -783,8 +783,8 @@ def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduced
     F_ii = J_b^T (F_b - M_b gamma_b) - (dl/dq_i)^T (N + CA/L0 dl/dt) with the bodies' rows
     J_b of J and the bars' axial forces N = dV/dl (Green-Lagrange, less the centrifugal
     term: :func:`_bar_energy`).  Same equations as the general path to round-off
-    (tests/test_fast_paths.py), about 3x cheaper: the span nodes' coordinates and their
-    derivatives are never formed.
+    (tests/test_fast_paths.py), about 4x cheaper on the tensioner bench: the span nodes'
+    coordinates and their derivatives are never formed.
     """
     steady = t is None
     tt = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
@@ -802,9 +802,8 @@ def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduced
     B, B_dot = b.reshape(-1, 3), b_dot.reshape(-1, 3)
     if steady:
         c = transport_speed(scene, inst, speed)
-    else:
-        d = drive_pulley(scene)  # the drive pulley's actual rim speed (transient_transport_speed)
-        c = scene.route.senses[d] * inst.radii[d] * B_dot[d, 2] / inst.stretch
+    else:  # the drive pulley's actual rim speed, as transient_transport_speed
+        c = _rim_transport_speed(scene, inst, B_dot)
     L0 = element_length(scene, inst)
     cc = c if scene.model.has("transport") else 0.0
     N = jax.vmap(jax.grad(_bar_energy_l2), in_axes=(0, 0, None, None, None))(l * l, L0, scene.belt.EA, scene.belt.rhoA,
@@ -854,9 +853,14 @@ def transient_transport_speed(scene: Scene, inst: Installation, v, t):
     _, xd, xdd = _travel_rates(scene, t)
     if flexible(scene):
         return xd / inst.stretch, xdd / inst.stretch
-    d = drive_pulley(scene)
     _, Bd = split_full(v, scene)
-    return scene.route.senses[d] * inst.radii[d] * Bd[d, 2] / inst.stretch, xdd / inst.stretch
+    return _rim_transport_speed(scene, inst, Bd), xdd / inst.stretch
+
+
+def _rim_transport_speed(scene: Scene, inst: Installation, bodies_dot):
+    """c = s R theta' / lam (m/s of unstretched belt) of the drive pulley; bodies_dot (nb, 3)."""
+    d = drive_pulley(scene)
+    return scene.route.senses[d] * inst.radii[d] * bodies_dot[d, 2] / inst.stretch
 
 
 def _travel_rates(scene: Scene, t):
