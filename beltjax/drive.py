@@ -815,7 +815,7 @@ def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduced
     return _small_spd_solve(_small_matmul_tn(J_b, rm.m_body[:, None] * J_b), F_i)
 
 
-#: largest rigid block solved by the unrolled Cholesky of :func:`_small_spd_solve`
+#: largest rigid block solved by the unrolled Gauss-Jordan elimination of :func:`_small_spd_solve`
 UNROLLED_SOLVE_MAX = 8
 
 
