@@ -312,16 +312,14 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation):
         end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
         return start, end, t_hat
     # the idler moves with the arm: the exact tangent points of the moved layout, and the belt
-    # on each arc, which turns with its pulley, gains R s dalpha where its end point moved by
-    # dalpha (rad, CCW) from the installed one; the end node slides by the rim travel less that
-    # (s R (phi - dalpha)).  Spans and arcs then keep the belt's length exactly as the arm
-    # swings (moving the tangent points rigidly with the centres was exact to first order only).
-    tl = geometry.tangent_line(centers, radii, senses, centers[nxt], radii[nxt], senses[nxt])
+    # on each arc, which turns with its pulley, gains s R dpsi where its end point moved by dpsi
+    # (rad, CCW) from the installed one; the end node slides by the rim travel less that
+    # (s R (phi - dpsi)).  Spans and arcs then keep the belt's length exactly as the arm swings
+    # (moving the tangent points rigidly with the centres was exact to first order only).
+    tl, dpsi = _moved_tangents(centers, radii, scene, inst)
     t_hat = tl.tangent
-    d_dep = _turn(inst.span_start - inst.centers, tl.start - centers)
-    d_arr = _turn(inst.span_end - inst.centers[nxt], tl.end - centers[nxt])
-    start = tl.start + (senses * radii * (phi - d_dep))[:, None] * t_hat
-    end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - d_arr))[:, None] * t_hat
+    start = tl.start + (senses * radii * (phi - dpsi))[:, None] * t_hat
+    end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - dpsi))[:, None] * t_hat
     return start, end, t_hat
 
 
@@ -352,6 +350,16 @@ def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=N
     return jnp.concatenate(bodies)
 
 
+def _moved_tangents(centers, radii, scene: Scene, inst: Installation):
+    """Tangent lines of the layout with these centres (m) and radii (m), and how far each span's
+    direction turned from the installed one, dpsi (n,) rad CCW.  Both tangent points of a span
+    lie on the normal to its direction, so each turned by dpsi on its pulley."""
+    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
+    tl = geometry.tangent_line(centers, radii, senses, centers[nxt], radii[nxt], senses[nxt])
+    return tl, _turn(inst.span_tangent, tl.tangent)
+
+
 def span_lengths(qi, scene: Scene, inst: Installation):
     """Stretched span lengths (m), shape (n,): the distance between each span's end nodes in
     the kinematic map (:func:`full_coordinates`).  The rotational model's spans are bars of
@@ -360,8 +368,8 @@ def span_lengths(qi, scene: Scene, inst: Installation):
     In closed form: l = L + r dpsi + s' R' phi' - s R phi, with L the tangent length of the
     (moved) layout, r = s R - s' R' the signed radius difference of the span's pulleys (from
     ``s R`` to ``s' R'``) and dpsi (rad) how far the span's direction turned from the installed
-    one: both tangent points of a span turn with its direction, so the end slides of
-    :func:`_span_ends` are s R (phi - dpsi) and s' R' (phi' - dpsi).
+    one (:func:`_moved_tangents`): the end slides of :func:`_span_ends` are s R (phi - dpsi) and
+    s' R' (phi' - dpsi).
     """
     phi, theta = angles_and_arm(qi, scene, inst)
     senses = jnp.asarray(scene.route.senses, dtype=qi.dtype)
@@ -371,13 +379,8 @@ def span_lengths(qi, scene: Scene, inst: Installation):
     slides = sr[nxt] * phi[nxt] - sr * phi
     if scene.tensioner is None:
         return inst.span_length + slides
-    d = centers[nxt] - centers
-    D2 = jnp.sum(d * d, axis=-1)
-    r = sr - sr[nxt]
-    L = jnp.sqrt(D2 - r * r)
-    t = (L[:, None] * d + r[:, None] * jnp.stack([-d[:, 1], d[:, 0]], axis=-1)) / D2[:, None]
-    dpsi = _turn(inst.span_tangent, t)
-    return L + r * dpsi + slides
+    tl, dpsi = _moved_tangents(centers, radii, scene, inst)
+    return tl.length + (sr - sr[nxt]) * dpsi + slides
 
 
 def _turn(a, b):
