@@ -372,20 +372,48 @@ def span_lengths(qi, scene: Scene, inst: Installation):
     s' R' (phi' - dpsi).
     """
     phi, theta = angles_and_arm(qi, scene, inst)
-    senses = jnp.asarray(scene.route.senses, dtype=qi.dtype)
-    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
     centers, radii = _centers(theta, scene, inst)
-    sr = senses * radii
-    slides = sr[nxt] * phi[nxt] - sr * phi
+    slides = _rim_slides(phi, radii, scene)
     if scene.tensioner is None:
         return inst.span_length + slides
+    sr = jnp.asarray(scene.route.senses, dtype=qi.dtype) * radii
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
     tl, dpsi = _moved_tangents(centers, radii, scene, inst)
     return tl.length + (sr - sr[nxt]) * dpsi + slides
 
 
+def _rim_slides(phi, radii, scene: Scene):
+    """s' R' phi' - s R phi (m) per span: how much the pulley rotations phi (n,) rad lengthen
+    each span (radii (n,) m, route order)."""
+    sr = jnp.asarray(scene.route.senses, dtype=phi.dtype) * radii
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
+    return sr[nxt] * phi[nxt] - sr * phi
+
+
+def span_lengths_and_jacobian(qi, scene: Scene, inst: Installation):
+    """:func:`span_lengths` (n,) m and their Jacobian dl/dq_i (n, n_i) (m/rad) of the rotational
+    model.
+
+    The rim slides are linear in the pulley angles and the layout moves with the arm angle
+    only, so the Jacobian is the slides' (constant in q_i) plus one column, the derivative along
+    the arm angle: one forward pass (jvp) instead of one per coordinate (jacfwd), which
+    matters in a vector field evaluated tens of thousands of times per simulated second.
+    """
+    if scene.tensioner is None:  # fixed centres: linear in q_i
+        return span_lengths(qi, scene, inst), jax.jacfwd(span_lengths)(qi, scene, inst)
+    e_arm = jnp.zeros_like(qi).at[n_rigid(scene) - 1].set(1.0)  # the arm angle, last rigid coordinate
+    l, dl_arm = jax.jvp(lambda x: span_lengths(x, scene, inst), (qi,), (e_arm,))
+
+    def slides(x):
+        phi, theta = angles_and_arm(x, scene, inst)
+        return _rim_slides(phi, _centers(theta, scene, inst)[1], scene)
+
+    return l, jax.jacfwd(slides)(qi) + dl_arm[:, None] * e_arm[None, :]
+
+
 def _turn(a, b):
     """Angle (rad, CCW, in (-pi, pi]) from the 2-vectors a to b, row by row."""
-    return jnp.arctan2(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0], jnp.sum(a * b, axis=-1))
+    return jnp.arctan2(geometry._cross(a, b), geometry._dot(a, b))
 
 
 def split_full(q, scene: Scene):
@@ -801,7 +829,7 @@ def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduced
     b, b_dot = jax.jvp(bodies, (qi, tt), (qi_dot, one))
     _, gamma_b = jax.jvp(lambda x, time: jax.jvp(bodies, (x, time), (qi_dot, one))[1], (qi, tt), (qi_dot, one))
     J_b = jax.jacfwd(bodies)(qi, tt)
-    l, J_l = span_lengths(qi, scene, inst), jax.jacfwd(span_lengths)(qi, scene, inst)
+    l, J_l = span_lengths_and_jacobian(qi, scene, inst)
     B, B_dot = b.reshape(-1, 3), b_dot.reshape(-1, 3)
     if steady:
         c = transport_speed(scene, inst, speed)

@@ -105,6 +105,10 @@ def test_span_lengths_closed_form_equals_the_kinematic_map():
         E, _ = drive.split_full(drive.full_coordinates(qi, sc, inst), sc)
         direct = jnp.linalg.norm(E[:, 4:6] - E[:, 0:2], axis=1)
         np.testing.assert_allclose(drive.span_lengths(qi, sc, inst), direct, rtol=1e-13)
+        # the vector field's Jacobian (slides' + one jvp along the arm) is jacfwd's
+        l, J = drive.span_lengths_and_jacobian(qi, sc, inst)
+        np.testing.assert_allclose(l, direct, rtol=1e-13)
+        np.testing.assert_allclose(J, jax.jacfwd(drive.span_lengths)(qi, sc, inst), rtol=1e-12, atol=1e-15)
 
 
 def test_span_columns_are_the_constant_selection():
