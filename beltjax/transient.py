@@ -192,22 +192,41 @@ def _solver(scene: Scene):
 
 
 @eqx.filter_jit
-def _integrate_chunk(scene: Scene, inst, y0, ts, dt, max_steps: int):
-    """Integrate from ts[0] to ts[-1], saving at ts; returns (ys, result code, steps)."""
+def _start(scene: Scene, inst, y0, t0, dt0):
+    """The solver's and step-size controller's states at the start of a run (t0 s, first
+    step dt0 s), as ``diffrax.diffeqsolve`` makes them: later chunks carry them on."""
     solver, controller = _solver(scene)
+    term = diffrax.ODETerm(vector_field(scene, inst))
+    _, c_state = controller.init(term, t0, t0 + dt0, y0, dt0, None, solver.func, solver.error_order(term))
+    return solver.init(term, t0, t0 + dt0, y0, None), c_state
+
+
+@eqx.filter_jit
+def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states):
+    """Integrate from ts[0] to ts[-1], saving at ts, first step dt0 (s), going on from
+    ``states`` = (solver state, controller state, made_jump) of the previous chunk (or
+    :func:`_start`), so that the run does not depend on where it is cut into chunks.
+
+    Returns (ys, result code, steps, accepted steps, the states at ts[-1])."""
+    solver, controller = _solver(scene)
+    s_state, c_state, jump = states
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(vector_field(scene, inst)),
         solver,
         t0=ts[0],
         t1=ts[-1],
-        dt0=dt,
+        dt0=dt0,
         y0=y0,
-        saveat=diffrax.SaveAt(ts=ts),
+        saveat=diffrax.SaveAt(ts=ts, solver_state=True, controller_state=True, made_jump=True),
         stepsize_controller=controller,
         max_steps=max_steps,
+        solver_state=s_state,
+        controller_state=c_state,
+        made_jump=jump,
         throw=False,
     )
-    return sol.ys, sol.result._value, sol.stats["num_steps"]
+    states = (sol.solver_state, sol.controller_state, sol.made_jump)
+    return sol.ys, sol.result._value, sol.stats["num_steps"], sol.stats["num_accepted_steps"], states
 
 
 # --------------------------------------------------------------------------- outputs
@@ -383,8 +402,10 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
 
     dt: time step (s; default :func:`default_dt`); output_dt: output interval (s;
     default :func:`default_output_dt`, rounded to a whole number of steps for fixed-step
-    solvers); chunk_s: the run is integrated in chunks of this length (s) with one
-    compiled function, printing progress to stderr when ``progress``.  Raises
+    solvers); chunk_s: the run is integrated in chunks of this length (s; default t_end / 10,
+    0.05 to 1 s) with one compiled function, printing progress to stderr when ``progress``;
+    the solver's and step-size controller's states go on from chunk to chunk, so the result
+    does not depend on the chunks (to round-off for fixed steps).  Raises
     :class:`TransientError` (one line) for bad arguments or a failed solver, and
     StaticsError when the drive has no equilibrium to start from.
     """
@@ -407,7 +428,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         )
     if n_out < 1:
         raise TransientError(f"t_end = {t_end!r} s is shorter than the output interval {out_dt:.3g} s")
-    per_chunk = max(1, int(round((chunk_s or max(0.05, min(0.5, t_end / 20))) / out_dt)))
+    per_chunk = max(1, int(round((chunk_s or max(0.05, min(1.0, t_end / 10))) / out_dt)))
     n_chunks = -(-n_out // per_chunk)
     steps_per_chunk = int(math.ceil(per_chunk * out_dt / dt)) + 8
     max_steps = steps_per_chunk if fixed else scene.simulation.max_steps
@@ -419,12 +440,18 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     y = jnp.concatenate([qi0, qd0])
     ts_all, ys_all, steps = [np.zeros(1)], [np.asarray(y)[None]], 0
     compile_s = None
+    dt0 = jnp.asarray(dt, dtype=y.dtype)
+    t0 = time.perf_counter()
+    states = (*_start(scene, inst, y, jnp.zeros_like(dt0), dt0), jnp.asarray(False))
     for c in range(n_chunks):
         k0 = c * per_chunk
         ts = (k0 + np.arange(per_chunk + 1)) * out_dt
-        t0 = time.perf_counter()
-        ys, code, nst = _integrate_chunk(scene, inst, y, jnp.asarray(ts), dt, max_steps)
+        if c:
+            t0 = time.perf_counter()
+        ys, code, nst, n_ok, states = _integrate_chunk(scene, inst, y, jnp.asarray(ts), dt0, max_steps, states)
         code = int(code)
+        if not fixed:  # the next chunk's first step: this chunk's mean accepted step
+            dt0 = jnp.asarray((ts[-1] - ts[0]) / max(1, int(n_ok)), dtype=y.dtype)
         if compile_s is None:
             compile_s = time.perf_counter() - t0
         if code != 0:

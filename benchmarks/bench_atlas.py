@@ -731,15 +731,17 @@ def _short_transient(base_sc, inst, y0, effects, window=0.02):
     ms = per + 16
     ts0 = jnp.linspace(0.0, 4e-4, per + 1)
     t0 = time.perf_counter()
-    jax.block_until_ready(bt._chunk(sc, inst, y0, ts0, *args, "generalized_alpha", ms))
+    states = bt._start(sc, inst, y0, *args, "generalized_alpha")
+    jax.block_until_ready(bt._chunk(sc, inst, y0, ts0, *args, "generalized_alpha", ms, states))
     compile_s = time.perf_counter() - t0
     y = y0
     nch = int(round(window / (per * 1e-4)))
     t0 = time.perf_counter()
     steps = 0
+    states = bt._start(sc, inst, y0, *args, "generalized_alpha")
     for c in range(nch):
         ts = jnp.asarray((c * per + np.arange(per + 1)) * 1e-4)
-        ys, code, nst, _ = bt._chunk(sc, inst, y, ts, *args, "generalized_alpha", ms)
+        ys, code, nst, _, states = bt._chunk(sc, inst, y, ts, *args, "generalized_alpha", ms, states)
         assert int(code) == 0, (effects, int(code))
         y = ys[-1]
         steps += int(nst)

@@ -213,18 +213,33 @@ def _solver(name, rho):
     return {"tsit5": diffrax.Tsit5, "dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5}[name]()
 
 
+def _controller(name, rtol, atol):
+    return diffrax.ConstantStepSize() if name == "generalized_alpha" else diffrax.PIDController(rtol=rtol, atol=atol)
+
+
 @eqx.filter_jit
-def _chunk(scene, inst, y0, ts, dt0, rtol, atol, rho, name: str, max_steps: int):
-    """transient._integrate_chunk with dt0, rtol, atol, rho_inf traced (one compile per solver)."""
-    if name == "generalized_alpha":
-        ctrl = diffrax.ConstantStepSize()
-    else:
-        ctrl = diffrax.PIDController(rtol=rtol, atol=atol)
+def _start(scene, inst, y0, dt0, rtol, atol, rho, name: str):
+    """transient._start with rtol, atol, rho_inf traced: the solver's and controller's states at t = 0."""
+    solver, ctrl = _solver(name, rho), _controller(name, rtol, atol)
+    term = diffrax.ODETerm(transient.vector_field(scene, inst))
+    t0 = jnp.zeros_like(dt0)
+    _, c_state = ctrl.init(term, t0, t0 + dt0, y0, dt0, None, solver.func, solver.error_order(term))
+    return solver.init(term, t0, t0 + dt0, y0, None), c_state, jnp.asarray(False)
+
+
+@eqx.filter_jit
+def _chunk(scene, inst, y0, ts, dt0, rtol, atol, rho, name: str, max_steps: int, states):
+    """transient._integrate_chunk with dt0, rtol, atol, rho_inf traced (one compile per solver); it
+    carries the solver's and controller's states from chunk to chunk, as simulate does."""
+    s_state, c_state, jump = states
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(transient.vector_field(scene, inst)), _solver(name, rho), t0=ts[0], t1=ts[-1], dt0=dt0,
-        y0=y0, saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl, max_steps=max_steps, throw=False,
+        y0=y0, saveat=diffrax.SaveAt(ts=ts, solver_state=True, controller_state=True, made_jump=True),
+        stepsize_controller=_controller(name, rtol, atol), max_steps=max_steps, throw=False,
+        solver_state=s_state, controller_state=c_state, made_jump=jump,
     )
-    return sol.ys, sol.result._value, sol.stats["num_steps"], sol.stats["num_accepted_steps"]
+    states = (sol.solver_state, sol.controller_state, sol.made_jump)
+    return sol.ys, sol.result._value, sol.stats["num_steps"], sol.stats["num_accepted_steps"], states
 
 
 class Case:
@@ -266,16 +281,20 @@ class Case:
         if (name, ms) not in self.compiled:  # compile on a tiny window of the same shape
             ts = jnp.linspace(0.0, 1e-6 if name != "generalized_alpha" else 4 * dt0, self.per_chunk + 1)
             t0 = time.perf_counter()
-            jax.block_until_ready(_chunk(self.scene0, self.inst, self.y0, ts, *args, name, ms))
+            states = _start(self.scene0, self.inst, self.y0, *args, name)
+            jax.block_until_ready(_chunk(self.scene0, self.inst, self.y0, ts, *args, name, ms, states))
             self.compiled[name, ms] = time.perf_counter() - t0
         rec["compile_s"] = self.compiled[name, ms]
         y = self.y0
         ys_all, steps, accepted, status, reached = [np.asarray(y)[None]], 0, 0, "ok", 0.0
         t_start, cpu_start = time.perf_counter(), time.process_time()
+        states = _start(self.scene0, self.inst, y, *args, name)
         for c in range(self.n_chunks):
             k0 = c * self.per_chunk
             ts = (k0 + np.arange(self.per_chunk + 1)) * self.out_dt
-            ys, code, nst, nacc = _chunk(self.scene0, self.inst, y, jnp.asarray(ts), *args, name, ms)
+            ys, code, nst, nacc, states = _chunk(self.scene0, self.inst, y, jnp.asarray(ts), *args, name, ms, states)
+            if name != "generalized_alpha":  # the next chunk's first step: this chunk's mean accepted step
+                args = (jnp.asarray(self.chunk_s / max(1, int(nacc))),) + args[1:]
             ys = np.asarray(ys)
             steps += int(nst)
             accepted += int(nacc)
