@@ -198,7 +198,9 @@ def _start(scene: Scene, inst, y0, t0, dt0):
     solver, controller = _solver(scene)
     term = diffrax.ODETerm(vector_field(scene, inst))
     _, c_state = controller.init(term, t0, t0 + dt0, y0, dt0, None, solver.func, solver.error_order(term))
-    return solver.init(term, t0, t0 + dt0, y0, None), c_state
+    # arrays throughout (the PID state holds a Python bool), as the chunks hand them on: the
+    # chunk function then compiles once
+    return jax.tree_util.tree_map(jnp.asarray, (solver.init(term, t0, t0 + dt0, y0, None), c_state))
 
 
 @eqx.filter_jit

@@ -224,7 +224,7 @@ def _start(scene, inst, y0, dt0, rtol, atol, rho, name: str):
     term = diffrax.ODETerm(transient.vector_field(scene, inst))
     t0 = jnp.zeros_like(dt0)
     _, c_state = ctrl.init(term, t0, t0 + dt0, y0, dt0, None, solver.func, solver.error_order(term))
-    return solver.init(term, t0, t0 + dt0, y0, None), c_state, jnp.asarray(False)
+    return jax.tree_util.tree_map(jnp.asarray, (solver.init(term, t0, t0 + dt0, y0, None), c_state, False))
 
 
 @eqx.filter_jit

@@ -33,6 +33,7 @@ scene with its [initial], [simulation] and load tables, which are static fields.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 
@@ -281,6 +282,20 @@ def test_a_run_does_not_depend_on_where_it_is_cut_into_chunks(release):
         err = np.max(np.abs(a - b)) / np.ptp(b)
         print(f"\n  {ch}: five chunks vs one, max difference {err:.1e} of the range")
         assert err < 1e-12, ch
+
+
+def test_the_chunk_function_compiles_once(caplog):
+    """The states handed from chunk to chunk have the types of those the run starts with (arrays,
+    not the Python bool of diffrax's PID state), so an adaptive run compiles its chunk function
+    once, not again at its second chunk (which doubled the first call's compile time)."""
+    text = substitute(scene_text("sim_two_pulley_release.toml"), ('solver = "generalized_alpha" ', 'solver = "dopri8" '))
+    with jax.log_compiles(True), caplog.at_level(logging.WARNING, logger="jax"):
+        res = transient.simulate(loads_scene(text), 0.3, chunk_s=0.1)
+    assert res.meta["solver"] == "dopri8"
+    compiles = [r.getMessage() for r in caplog.records
+                if r.getMessage().startswith("Finished XLA compilation of jit(_integrate_chunk)")]
+    print(f"\n  {len(compiles)} compilation(s) of the chunk function for 3 chunks")
+    assert len(compiles) == 1, compiles
 
 
 def test_rotational_default_solver_release(release):
