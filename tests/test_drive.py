@@ -206,6 +206,20 @@ def test_tensioner_bench_against_thesis(ref, tensioner_modes):
     assert abs(np.linalg.norm(F) / (st["T_theory"] * np.linalg.norm(u)) - 1) < 0.005
     M_thesis = st["T_theory"] * float(-arm)
     assert M_thesis > 1.05 * float(t.spring_stiffness * (jnp.radians(t.spring_preload_deg) - th)), M_thesis
+    # the thesis' installation (Simulation 1, 7.2.1.2) says the same: the arm held where the belt
+    # fits unstretched (44.3 deg, no belt force) needs M_ti = 20.6 N m, against the printed spring's
+    # k (theta_0 - theta) = 18.5 N m there: at both angles its model's spring gave 9-11 % more
+    # moment than the printed one (as k = 23.1-23.5 N m/rad with theta_0 = 94.5 deg, or theta_0 =
+    # 98.8-100.1 deg with k = 21.14).  (A stiffer spring alone does not restore 46.8 deg here: the
+    # belt that fits unstretched at 44.3 deg gains only 1.7 mm of path by 46.8 deg; README.)
+    installation = ref["tensioner_bench_stage2"]["installation"]
+    th_i = jnp.radians(installation["belt_fits_unstretched_at_arm_angle_deg"])
+    excess_i = installation["minimum_installation_moment_Nm"] / float(
+        t.spring_stiffness * (jnp.radians(t.spring_preload_deg) - th_i))
+    excess_eq = M_thesis / float(t.spring_stiffness * (jnp.radians(t.spring_preload_deg) - th))
+    print(f"  thesis spring moment / printed spring: {excess_i:.3f} at the installation (44.3 deg), "
+          f"{excess_eq:.3f} at the equilibrium (46.8 deg)")
+    assert 1.05 < excess_i < 1.2 and abs(excess_i / excess_eq - 1) < 0.03
     # labels: a tensioner rotational mode is the lowest flexible mode, as in Table 7.9
     assert res.labels[1].startswith("1st rotational (tensioner")
 
