@@ -419,32 +419,44 @@ def headline_runs(quick: bool):
     return runs
 
 
+#: simulate() calls timed per headline model after the first (compiling) one: the median is the
+#: figure, min-max the spread (single timings of a 0.2 s call scatter by 10-20 % on this machine)
+HEADLINE_REPEATS = {"rotational": 7, "hybrid": 3}
+
+
 def headline(quick: bool):
     rows, recs = [], []
     for label, kind, sc, window in headline_runs(quick):
         t0 = time.perf_counter()
         r1 = transient.simulate(sc, window)
         first = time.perf_counter() - t0
-        r2 = transient.simulate(sc, window)
+        samples = []
+        for _ in range(HEADLINE_REPEATS[kind]):
+            r2 = transient.simulate(sc, window)
+            samples.append(r2.meta["wall_s"] / r2.meta["t_end_s"])
         m = r2.meta
-        sps = m["wall_s"] / m["t_end_s"]
+        sps = float(np.median(samples))
         target = TARGETS[kind]
         rec = dict(label=label, kind=kind, solver=m["solver"], dt_s=m["dt_s"], rho_inf=m["rho_inf"],
                    n_independent=m["n_independent"], window_s=m["t_end_s"], steps=m["steps"],
-                   first_call_s=first, first_chunk_s=r1.meta["first_chunk_s"], wall_s=m["wall_s"],
-                   s_per_s=sps, realtime_factor=1.0 / sps, target_s_per_s=target, met=sps <= target,
-                   time_per_step_s=m["wall_s"] / m["steps"])
+                   first_call_s=first, first_chunk_s=r1.meta["first_chunk_s"], wall_s=sps * m["t_end_s"],
+                   s_per_s=sps, s_per_s_samples=samples, s_per_s_min=min(samples), s_per_s_max=max(samples),
+                   realtime_factor=1.0 / sps, target_s_per_s=target, met=sps <= target,
+                   met_by_every_sample=max(samples) <= target, time_per_step_s=sps * m["t_end_s"] / m["steps"])
         recs.append(rec)
         setting = (f"gen-alpha, dt {m['dt_s']:g} s, rho_inf {m['rho_inf']:g}" if m["solver"] == "generalized_alpha"
                    else f"{SHORT[m['solver']]}, rtol {sc.simulation.rtol:g}, atol {sc.simulation.atol:g}")
         rec["setting"] = setting
         rows.append([label, setting, m["n_independent"], f"{m['t_end_s']:g} s", m["steps"], f"{sps:.3g} s",
+                     f"{min(samples):.3g}-{max(samples):.3g} s ({len(samples)})",
                      f"{1 / sps:.3g}x" if sps < 1 else f"1/{sps:.3g}", f"<= {target:g} s",
-                     "yes" if sps <= target else "NO", f"{target / sps:.2g}x", fmt_time(rec["time_per_step_s"]),
-                     f"{first:.1f} s"])
-        print(f"  {label}: {sps:.3g} s per simulated s (first call {first:.1f} s)", flush=True)
+                     ("yes" if max(samples) <= target else "median only") if sps <= target else "NO",
+                     f"{target / sps:.2g}x", fmt_time(rec["time_per_step_s"]), f"{first:.1f} s"])
+        print(f"  {label}: {sps:.3g} s per simulated s, median of {len(samples)} "
+              f"({min(samples):.3g}-{max(samples):.3g}; first call {first:.1f} s)", flush=True)
     t = table(["model (simulate, default solver)", "solver", "unknowns", "window", "steps",
-               "wall / simulated s", "vs real time", "target", "met?", "margin", "per step", "first call"],
+               "wall / simulated s (median)", "spread (calls)", "vs real time", "target", "met?", "margin",
+               "per step", "first call"],
               rows, "Headline: simulate() with the default solver, after compilation")
     return recs, t
 
