@@ -191,29 +191,24 @@ def _solver(scene: Scene):
     raise TransientError(f"simulation.solver: unknown solver {name!r}")
 
 
-@eqx.filter_jit
-def _start(scene: Scene, inst, y0, t0, dt0):
-    """The solver's and step-size controller's states at the start of a run (t0 s, first
-    step dt0 s), as ``diffrax.diffeqsolve`` makes them: later chunks carry them on."""
-    solver, controller = _solver(scene)
-    term = diffrax.ODETerm(vector_field(scene, inst))
+def _start_states(term, solver, controller, y0, t0, dt0):
+    """(solver state, controller state, made_jump) at the start of a run (t0 s, first step
+    dt0 s), as ``diffrax.diffeqsolve`` makes them; :func:`_solve_chunk` carries them on.
+    Arrays throughout (diffrax's PID state holds a Python bool, which a jitted chunk function
+    would take as static and compile for again at the second chunk)."""
     _, c_state = controller.init(term, t0, t0 + dt0, y0, dt0, None, solver.func, solver.error_order(term))
-    # arrays throughout (the PID state holds a Python bool), as the chunks hand them on: the
-    # chunk function then compiles once
-    return jax.tree_util.tree_map(jnp.asarray, (solver.init(term, t0, t0 + dt0, y0, None), c_state))
+    return jax.tree_util.tree_map(jnp.asarray, (solver.init(term, t0, t0 + dt0, y0, None), c_state, False))
 
 
-@eqx.filter_jit
-def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states):
-    """Integrate from ts[0] to ts[-1], saving at ts, first step dt0 (s), going on from
-    ``states`` = (solver state, controller state, made_jump) of the previous chunk (or
-    :func:`_start`), so that the run does not depend on where it is cut into chunks.
+def _solve_chunk(term, solver, controller, y0, ts, dt0, max_steps: int, states):
+    """``diffrax.diffeqsolve`` from ts[0] to ts[-1], saving at ts, first step dt0 (s), going on
+    from ``states`` of the previous chunk (or :func:`_start_states`), so that a run does not
+    depend on where it is cut into chunks.
 
     Returns (ys, result code, steps, accepted steps, the states at ts[-1])."""
-    solver, controller = _solver(scene)
     s_state, c_state, jump = states
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(vector_field(scene, inst)),
+        term,
         solver,
         t0=ts[0],
         t1=ts[-1],
@@ -229,6 +224,18 @@ def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states):
     )
     states = (sol.solver_state, sol.controller_state, sol.made_jump)
     return sol.ys, sol.result._value, sol.stats["num_steps"], sol.stats["num_accepted_steps"], states
+
+
+@eqx.filter_jit
+def _start(scene: Scene, inst, y0, t0, dt0):
+    """:func:`_start_states` of the scene's solver (:func:`_solver`)."""
+    return _start_states(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene), y0, t0, dt0)
+
+
+@eqx.filter_jit
+def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states):
+    """:func:`_solve_chunk` of the scene's vector field and solver (:func:`_solver`)."""
+    return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene), y0, ts, dt0, max_steps, states)
 
 
 # --------------------------------------------------------------------------- outputs
@@ -444,7 +451,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     compile_s = None
     dt0 = jnp.asarray(dt, dtype=y.dtype)
     t0 = time.perf_counter()
-    states = (*_start(scene, inst, y, jnp.zeros_like(dt0), dt0), jnp.asarray(False))
+    states = _start(scene, inst, y, jnp.zeros_like(dt0), dt0)
     for c in range(n_chunks):
         k0 = c * per_chunk
         ts = (k0 + np.arange(per_chunk + 1)) * out_dt

@@ -220,26 +220,18 @@ def _controller(name, rtol, atol):
 @eqx.filter_jit
 def _start(scene, inst, y0, dt0, rtol, atol, rho, name: str):
     """transient._start with rtol, atol, rho_inf traced: the solver's and controller's states at t = 0."""
-    solver, ctrl = _solver(name, rho), _controller(name, rtol, atol)
     term = diffrax.ODETerm(transient.vector_field(scene, inst))
-    t0 = jnp.zeros_like(dt0)
-    _, c_state = ctrl.init(term, t0, t0 + dt0, y0, dt0, None, solver.func, solver.error_order(term))
-    return jax.tree_util.tree_map(jnp.asarray, (solver.init(term, t0, t0 + dt0, y0, None), c_state, False))
+    return transient._start_states(term, _solver(name, rho), _controller(name, rtol, atol), y0,
+                                   jnp.zeros_like(dt0), dt0)
 
 
 @eqx.filter_jit
 def _chunk(scene, inst, y0, ts, dt0, rtol, atol, rho, name: str, max_steps: int, states):
     """transient._integrate_chunk with dt0, rtol, atol, rho_inf traced (one compile per solver); it
     carries the solver's and controller's states from chunk to chunk, as simulate does."""
-    s_state, c_state, jump = states
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(transient.vector_field(scene, inst)), _solver(name, rho), t0=ts[0], t1=ts[-1], dt0=dt0,
-        y0=y0, saveat=diffrax.SaveAt(ts=ts, solver_state=True, controller_state=True, made_jump=True),
-        stepsize_controller=_controller(name, rtol, atol), max_steps=max_steps, throw=False,
-        solver_state=s_state, controller_state=c_state, made_jump=jump,
-    )
-    states = (sol.solver_state, sol.controller_state, sol.made_jump)
-    return sol.ys, sol.result._value, sol.stats["num_steps"], sol.stats["num_accepted_steps"], states
+    term = diffrax.ODETerm(transient.vector_field(scene, inst))
+    return transient._solve_chunk(term, _solver(name, rho), _controller(name, rtol, atol), y0, ts, dt0,
+                                  max_steps, states)
 
 
 class Case:
