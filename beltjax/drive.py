@@ -153,6 +153,24 @@ def static_dofs(scene: Scene) -> np.ndarray:
     return dofs
 
 
+def travel_follows_drive(scene: Scene) -> bool:
+    """Whether a transient's belt travel follows the drive pulley's own rotation: when that
+    pulley is free (no pulley of the route is driven, e.g. a crank turned by a [[torque]]).
+
+    The belt then travels x = x_b(t) + s R phi_d (m: the nominal travel of
+    :func:`belt_travel` plus the drive pulley's rim travel beyond it), its transport speed is
+    c = s R theta_d' / lam, and every span end slides by its pulley's rim travel less x
+    (:func:`full_coordinates`); otherwise x = x_b(t) is prescribed.
+    """
+    return is_free(scene)[drive_pulley(scene)]
+
+
+def travel_coordinate(scene: Scene) -> int:
+    """Position in q_i of the drive pulley's angle when it is free (:func:`travel_follows_drive`)."""
+    d = drive_pulley(scene)
+    return sum(is_free(scene)[:d])
+
+
 def drive_pulley(scene: Scene) -> int:
     """Route index of the pulley whose speed sets the belt speed.
 
@@ -252,8 +270,11 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     qi: independent coordinates (m, rad, -); driven_angle: prescribed rotation
     perturbation of driven pulleys (rad, scalar or (n,) route order); t: time (s), for
     transients: each pulley then also turns by its nominal rolling angle
-    s_i x_b(t) / R_i (:func:`belt_travel`, speed fluctuation included); None (statics,
-    modes) leaves it out.  shift: virtual displacement (m) of every
+    s_i x_b(t) / R_i (:func:`belt_travel`, speed fluctuation included), and when the drive
+    pulley is free the belt travels with it (:func:`travel_follows_drive`): every span end
+    slides by its pulley's rim travel less the drive pulley's, s R phi - s_d R_d phi_d, so a
+    free crank may turn any amount; None (statics, modes) leaves both out (there the drive
+    pulley is held, or its rotation is the rigid turn of the loop).  shift: virtual displacement (m) of every
     bearing, shape (n_reaction_points, 2) (route entries, then the arm pivot), used to
     compute bearing reactions; None = 0.  Returns the full vector: span coordinates
     (n spans x 4 (N+1)), then (x, y, angle) per body (m, rad); with ``unbalance`` the
@@ -264,7 +285,11 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     _, spans = _split(qi, scene)
     phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
     centers, radii = _centers(theta, scene, inst, shift)
-    start, end, t_hat = _span_ends(phi, centers, radii, scene, inst)
+    travel = 0.0
+    if t is not None and travel_follows_drive(scene):  # the belt travels with the free drive pulley
+        d = drive_pulley(scene)
+        travel = scene.route.senses[d] * radii[d] * phi[d]
+    start, end, t_hat = _span_ends(phi, centers, radii, scene, inst, travel)
     parts = []
     for s in range(len(scene.route.order)):
         if spans is None:  # rotational: a bar between the end nodes; slopes are not used
@@ -295,10 +320,11 @@ def _centers(theta, scene: Scene, inst: Installation, shift=None):
     return centers, radii
 
 
-def _span_ends(phi, centers, radii, scene: Scene, inst: Installation):
+def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0):
     """Span end nodes (start, end, each (n, 2) m) and span directions (n, 2) of the kinematic
     map, for pulley rotation perturbations phi (n,) rad, centres (n, 2) m and radii (n,) m
-    (:func:`_centers`).
+    (:func:`_centers`); travel: the belt's travel beyond the nominal one (m), taken off every
+    pulley's rim slide (the end nodes sit on the belt's Eulerian mesh, which moves with it).
     end - start is along the direction: the span's length is (end - start) . t_hat."""
     n = len(scene.route.order)
     senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
@@ -306,7 +332,7 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation):
     if scene.tensioner is None:
         # fixed centres: the installed tangent points, each end node slid along its span by the
         # rim travel of its pulley (belt fed into or drawn out of the span)
-        slide = senses * radii * phi  # rim travel of each pulley along the belt (m)
+        slide = senses * radii * phi - travel  # rim travel of each pulley along the belt (m)
         t_hat = inst.span_tangent
         start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
         end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
@@ -318,8 +344,8 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation):
     # (moving the tangent points rigidly with the centres was exact to first order only).
     tl, dpsi = _moved_tangents(centers, radii, scene, inst)
     t_hat = tl.tangent
-    start = tl.start + (senses * radii * (phi - dpsi))[:, None] * t_hat
-    end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - dpsi))[:, None] * t_hat
+    start = tl.start + (senses * radii * (phi - dpsi) - travel)[:, None] * t_hat
+    end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - dpsi) - travel)[:, None] * t_hat
     return start, end, t_hat
 
 
@@ -570,7 +596,7 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     if scene.model.has("gravity"):
         f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
         if inst is not None and flexible(scene):
-            f = f.at[: len(scene.route.order), 2].add(_belt_weight_slide_moments(scene, inst))
+            f = f.at[: len(scene.route.order), 2].add(_belt_weight_slide_moments(scene, inst, t is not None))
     if t is None:
         return f
     order = scene.route.order
@@ -586,7 +612,7 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     return f
 
 
-def _belt_weight_slide_moments(scene: Scene, inst: Installation):
+def _belt_weight_slide_moments(scene: Scene, inst: Installation, transient: bool = False):
     """Moments (N m) on the pulleys that make a rigid turn of the belt loop cost no weight.
 
     A pulley's rotation perturbation slides the span end nodes along their spans (s R phi);
@@ -594,7 +620,11 @@ def _belt_weight_slide_moments(scene: Scene, inst: Installation):
     move its weight.  The span's weight is counted with its nodes shifted back by the
     interpolated end slides, (1 - x) s0 + x s1 along the span: that adds the potential
     rhoA (g . t) L0 (s0 + s1) / 2 per span, i.e. these constant moments (a pure moment: the
-    bearing forces are unchanged).
+    bearing forces are unchanged).  In a transient whose belt travels with a free drive
+    pulley (:func:`travel_follows_drive`) the slides are taken relative to that travel,
+    s R phi - s_d R_d phi_d, which adds to the drive pulley's moment minus s_d R_d times the
+    others' sum of m_i / (s_i R_i): a rigid turn of the loop, which then moves no node, does no
+    work either.
     """
     n = len(scene.route.order)
     g = jnp.asarray(GRAVITY)
@@ -602,7 +632,11 @@ def _belt_weight_slide_moments(scene: Scene, inst: Installation):
     senses = jnp.asarray(scene.route.senses, dtype=L0.dtype)
     w = scene.belt.rhoA * (inst.span_tangent @ g) * L0 / 2  # per span, N
     prev = (np.arange(n) - 1) % n
-    return -(w + w[prev]) * senses * inst.radii
+    m = -(w + w[prev]) * senses * inst.radii
+    if transient and travel_follows_drive(scene):
+        d = drive_pulley(scene)
+        m = m.at[d].add(-senses[d] * inst.radii[d] * jnp.sum(m / (senses * inst.radii)))
+    return m
 
 
 def _window(t, t_start, t_end):
@@ -718,8 +752,8 @@ def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_fu
     act.  Returns (M_ii, F_ii) in kg / kg m^2 and N / N m.
     """
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
-    _, _, gamma, J, F = full_motion(qi, qi_dot, scene, inst, speed, t)
-    return J.T @ M @ J, J.T @ (F - M @ gamma)
+    q, v, gamma, J, F = full_motion(qi, qi_dot, scene, inst, speed, t)
+    return _with_travel_inertia(J.T @ M @ J, J.T @ (F - M @ gamma), J, travel_inertia(q, v, gamma, scene, inst, t))
 
 
 def span_coordinate_index(scene: Scene) -> np.ndarray:
@@ -788,15 +822,21 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
         return _bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed)
     nr = n_rigid(scene)
     idx = span_coordinate_index(scene)
-    _, _, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
+    q, v, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
     M = rm.M_full
     r = F - M @ gamma
     F_r = J_r.T @ r
     M_rr = J_r.T @ (M @ J_r)
+    # a free drive pulley's travel: its coupling reaches only the rigid rows (k < n_rigid) and
+    # the span rows' column k (S^T P = P[idx]); the span block M_ss stays constant
+    ti = travel_inertia(q, v, gamma, scene, inst, t)
+    M_rr, F_r = _with_travel_inertia(M_rr, F_r, J_r, ti)
     if idx.size == 0:
         return _small_spd_solve(M_rr, F_r)
     F_s = r[idx]
     M_sr = rm.M_s @ J_r  # (n_span, n_rigid)
+    if ti is not None:
+        M_sr = M_sr.at[:, ti.k].add(ti.kappa * ti.P[idx])
     X = jax.scipy.linalg.cho_solve((rm.chol, True), jnp.concatenate([M_sr, F_s[:, None]], axis=1))
     if nr == 0:
         return X[:, 0]
@@ -872,18 +912,17 @@ def _small_spd_solve(A, b):
 
 
 def transient_transport_speed(scene: Scene, inst: Installation, v, t):
-    """Transport speed c (m/s of unstretched belt) and its rate (m/s^2) at time t (s) of a
-    transient, full coordinate rates v.
+    """Transport speed c (m/s of unstretched belt) and the known part of its rate c_0' (m/s^2)
+    at time t (s) of a transient, full coordinate rates v.
 
-    Hybrid model: those of the nominal travel (:func:`belt_travel`), the material speed of the
-    Eulerian mesh; a free drive pulley turning away from it feeds belt into its spans through
-    the slide of their end nodes.  Rotational model (massless spans): the drive pulley's actual
-    rim speed, c = s R theta' / lam (the thesis' c = R theta'), so that the centrifugal tension
-    follows a free drive pulley turned by a torque; equal to the nominal one for a driven pulley.
+    c is the drive pulley's actual rim speed, c = s R theta' / lam (the thesis' c = R theta'),
+    in both fidelities: the nominal travel's rate (:func:`belt_travel`) for a driven drive
+    pulley, and for a free one (:func:`travel_follows_drive`) what its torque and the belt make
+    of it, so that the centrifugal tension follows a crank turned by a torque.  c_0' is the
+    nominal travel's acceleration / lam; a free drive pulley's own share, kappa phi_d''
+    (:func:`travel_inertia`), belongs to the mass matrix of the hybrid model.
     """
-    _, xd, xdd = _travel_rates(scene, t)
-    if flexible(scene):
-        return xd / inst.stretch, xdd / inst.stretch
+    _, _, xdd = _travel_rates(scene, t)
     _, Bd = split_full(v, scene)
     return _rim_transport_speed(scene, inst, Bd), xdd / inst.stretch
 
@@ -892,6 +931,72 @@ def _rim_transport_speed(scene: Scene, inst: Installation, bodies_dot):
     """c = s R theta' / lam (m/s of unstretched belt) of the drive pulley; bodies_dot (nb, 3)."""
     d = drive_pulley(scene)
     return scene.route.senses[d] * inst.radii[d] * bodies_dot[d, 2] / inst.stretch
+
+
+class TravelInertia(NamedTuple):
+    """The belt's travel as a degree of freedom (:func:`travel_inertia`).
+
+    k: position of the free drive pulley's angle in q_i; kappa = s R / lam (m/rad): dc/d phi_d';
+    pi_c = dT/dc (N s) is the spans' momentum conjugate to the transport speed; P = d pi_c / dq'
+    (kg, full vector, zero on the bodies); pi_cc = d pi_c / dc (kg, the spans' belt mass times
+    lam^2); h: the rate of pi_c at q_i'' = 0 (N).
+    """
+
+    k: int
+    kappa: jax.Array
+    P: jax.Array
+    pi_cc: jax.Array
+    h: jax.Array
+
+
+def travel_inertia(q, v, gamma, scene: Scene, inst: Installation, t) -> TravelInertia | None:
+    """Inertia of the belt's travel when it follows a free drive pulley (hybrid transients).
+
+    With c = c_0(t) + kappa phi_d' (:func:`transient_transport_speed`), the spans' kinetic
+    energy T = sum 1/2 int rhoA |r_t + c r_x|^2 dx depends on phi_d' through c, so Lagrange's
+    equations gain, besides the forces at this c: the rhoA dc/dt term's share kappa phi_d''
+    (-P kappa phi_d'' on the span coordinates: mass coupling J^T P kappa e_k^T), and in the
+    row of phi_d the rate of the momentum kappa pi_c, kappa (P . q'' + pi_cc c' + d pi_c/dq . q'),
+    whose acceleration terms are the symmetric coupling and kappa^2 pi_cc (the spans' belt
+    mass moving with the crank).  None when the travel is prescribed (driven drive pulley,
+    statics, modes) or the spans are massless (rotational model: there c alone follows).
+    """
+    if t is None or not flexible(scene) or not travel_follows_drive(scene):
+        return None
+    n = len(scene.route.order)
+    ns = n_span_coordinates(scene)
+    idx = span.element_index(scene.model.elements_per_span)
+    Le = element_length(scene, inst)
+    rhoA = scene.belt.rhoA
+    c, c0_dot = transient_transport_speed(scene, inst, v, t)
+
+    def pi_c(qs, vs, cc):
+        def T(c_):
+            Ts = jax.vmap(span.span_kinetic_energy, in_axes=(0, 0, None, None, 0, None))(
+                qs.reshape(n, -1), vs.reshape(n, -1), c_, rhoA, Le, idx)
+            return jnp.sum(Ts)
+
+        return jax.grad(T)(cc)
+
+    qs, vs, gs = q[:ns], v[:ns], gamma[:ns]
+    P = jax.grad(pi_c, argnums=1)(qs, vs, c)
+    pi_cc = jax.grad(pi_c, argnums=2)(qs, vs, c)
+    _, h = jax.jvp(pi_c, (qs, vs, c), (vs, gs, jnp.asarray(c0_dot, dtype=q.dtype)))
+    d = drive_pulley(scene)
+    kappa = scene.route.senses[d] * inst.radii[d] / inst.stretch
+    P_full = jnp.concatenate([P, jnp.zeros(q.shape[0] - ns, dtype=q.dtype)])
+    return TravelInertia(travel_coordinate(scene), kappa, P_full, pi_cc, h)
+
+
+def _with_travel_inertia(M_ii, F_ii, J, ti: TravelInertia | None):
+    """M_ii, F_ii of the reduced equations with the travel's inertia (:func:`travel_inertia`);
+    J: dPhi/dq_i (n_full, n_i)."""
+    if ti is None:
+        return M_ii, F_ii
+    a = J.T @ ti.P
+    e = jnp.zeros_like(a).at[ti.k].set(1.0)
+    M_ii = M_ii + ti.kappa * (jnp.outer(a, e) + jnp.outer(e, a)) + ti.kappa**2 * ti.pi_cc * jnp.outer(e, e)
+    return M_ii, F_ii - ti.kappa * ti.h * e
 
 
 def _travel_rates(scene: Scene, t):

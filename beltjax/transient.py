@@ -110,8 +110,9 @@ def _straighten(qi_new, qi_old, scene: Scene, inst) -> jax.Array:
         return qi_new
     N = scene.model.elements_per_span
     n = len(scene.route.order)
-    Ea, _ = drive.split_full(drive.full_coordinates(qi_old, scene, inst), scene)
-    Eb, _ = drive.split_full(drive.full_coordinates(qi_new, scene, inst), scene)
+    # the transient's map at t = 0 (a free drive pulley's rotation moves the belt with it)
+    Ea, _ = drive.split_full(drive.full_coordinates(qi_old, scene, inst, t=0.0), scene)
+    Eb, _ = drive.split_full(drive.full_coordinates(qi_new, scene, inst, t=0.0), scene)
     d0 = Eb[:, 0:2] - Ea[:, 0:2]
     d1 = Eb[:, 4 * N : 4 * N + 2] - Ea[:, 4 * N : 4 * N + 2]
     Lspan = drive.element_length(scene, inst) * N
@@ -254,8 +255,11 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     shift0 = jnp.zeros((nrp, 2))
     drv0 = jnp.zeros(n)
     q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t)
-    qdd = jnp.linalg.solve(J.T @ M_full @ J, J.T @ (F - M_full @ gamma))
+    ti = drive.travel_inertia(q, v, gamma, scene, inst, t)
+    qdd = jnp.linalg.solve(*drive._with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))
     a = J @ qdd + gamma
+    if ti is not None:  # the rhoA dc/dt force of the travel's own acceleration
+        F = F - ti.kappa * qdd[ti.k] * ti.P
     c = drive.transient_transport_speed(scene, inst, v, t)[0]
     R = F - M_full @ a  # applied minus inertial: what the constraints must balance
     Js = jax.jacfwd(lambda s: phi(qi, t, s, drv0))(shift0)  # (nq, nrp, 2)
@@ -376,17 +380,24 @@ MAX_SLIDE_ELEMENTS = 0.5
 
 
 def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
-    """The hybrid model's end nodes slide by R phi from their tangent points: phi must stay a
-    perturbation of the prescribed rolling (belt_travel), or the spans leave the pulleys."""
-    slide = np.abs(np.radians(rotations_deg)) * np.asarray(inst.radii)[None, :]
+    """The hybrid model's end nodes slide by s R phi - x from their tangent points (x: the belt's
+    travel beyond the nominal one, that of a free drive pulley, else 0): a pulley must stay a
+    perturbation of the belt's travel, or the spans leave the pulleys."""
+    sr = np.asarray(scene.route.senses)[None, :] * np.asarray(inst.radii)[None, :]
+    rim = sr * np.radians(rotations_deg)
+    if drive.travel_follows_drive(scene):
+        d = drive.drive_pulley(scene)
+        rim = rim - rim[:, d : d + 1]
+    slide = np.abs(rim)
     Le = float(np.min(np.asarray(drive.element_length(scene, inst))))
     k = np.unravel_index(np.argmax(slide), slide.shape)
     if slide[k] > MAX_SLIDE_ELEMENTS * Le:
         name = scene.route.order[k[1]]
         raise TransientError(
-            f"pulley {name!r} turned {rotations_deg[k]:.3g} deg away from the belt's prescribed travel by "
+            f"pulley {name!r} turned {np.degrees(slide[k] / float(inst.radii[k[1]])):.3g} deg away from the belt's travel by "
             f"t = {t[k[0]]:.4g} s (rim slide {1e3 * slide[k]:.3g} mm > half an element, {1e3 * Le / 2:.3g} mm): "
-            "in the hybrid model the drive pulley's speed_rpm / acceleration must follow the belt's motion"
+            "the model has no slip: a driven pulley's speed_rpm / acceleration must match the belt's motion, "
+            "and a free pulley must not be torqued beyond what the belt can carry"
         )
 
 

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from beltjax import drive, statics
+from beltjax import drive, span, statics
 from beltjax import scene as scene_mod
 from beltjax.scene import load_scene
 
@@ -41,14 +41,74 @@ def test_reduced_accelerations_equal_dense_solve(fidelity):
     qd = jnp.asarray(rng.standard_normal(n))
     t = 0.013
     rm = drive.reduced_mass(sc, inst)
-    fast = drive.reduced_accelerations(qi, qd, sc, inst, rm, t=t)
-    M, F = drive.reduced_system(qi, qd, sc, inst, t=t)
-    ref = jnp.linalg.solve(M, F)
+    fast_fn = jax.jit(lambda x: drive.reduced_accelerations(x, qd, sc, inst, rm, t=t))
+    ref_fn = jax.jit(lambda x: jnp.linalg.solve(*drive.reduced_system(x, qd, sc, inst, t=t)))
+    fast, ref = fast_fn(qi), ref_fn(qi)
     np.testing.assert_allclose(fast, ref, rtol=1e-9, atol=1e-9 * float(jnp.max(jnp.abs(ref))))
     # and its derivative (the Newton Jacobian of the implicit solvers)
-    Jf = jax.jacfwd(lambda x: drive.reduced_accelerations(x, qd, sc, inst, rm, t=t))(qi)
-    Jr = jax.jacfwd(lambda x: jnp.linalg.solve(*drive.reduced_system(x, qd, sc, inst, t=t)))(qi)
+    Jf = jax.jit(jax.jacfwd(fast_fn))(qi)
+    Jr = jax.jit(jax.jacfwd(ref_fn))(qi)
     np.testing.assert_allclose(Jf, Jr, rtol=1e-8, atol=1e-8 * float(jnp.max(jnp.abs(Jr))))
+
+
+def _lagrange(sc, inst, qi, qd, t):
+    """M_ii and F_ii of Lagrange's equations by autodiff of the drive's kinetic energy
+    T(q_i, q_i', t) (bodies, and the spans' 1/2 int rhoA |r_t + c r_x|^2 dx with c the drive
+    pulley's rim speed / lam) and its strain energy and spring, written out here."""
+    n = len(sc.route.order)
+    idx = span.element_index(sc.model.elements_per_span)
+    Le, ns, mb = drive.element_length(sc, inst), drive.n_span_coordinates(sc), drive.body_masses(sc, inst)
+    t = jnp.asarray(t)
+
+    def T(x, xd, tt):
+        q, v = jax.jvp(lambda y, s: drive.full_coordinates(y, sc, inst, t=s), (x, tt), (xd, jnp.ones_like(tt)))
+        E, Ed = q[:ns].reshape(n, -1), v[:ns].reshape(n, -1)
+        c = drive.transient_transport_speed(sc, inst, v, tt)[0]
+        return sum(span.span_kinetic_energy(E[s], Ed[s], c, sc.belt.rhoA, Le[s], idx) for s in range(n)) + 0.5 * jnp.sum(
+            mb * v[ns:] ** 2)
+
+    def V(x, tt):
+        E, B = drive.split_full(drive.full_coordinates(x, sc, inst, t=tt), sc)
+        U = sum(span.span_strain_energy(E[s], drive.section(sc), Le[s], idx, sc.model.bending) for s in range(n))
+        if sc.tensioner is not None:
+            k = sc.tensioner
+            U = U + 0.5 * k.spring_stiffness * (B[-1, 2] - jnp.deg2rad(k.spring_preload_deg)) ** 2
+        return U
+
+    M = jax.hessian(T, argnums=1)(qi, qd, t)
+    _, dp = jax.jvp(lambda x, xd, tt: jax.grad(T, argnums=1)(x, xd, tt), (qi, qd, t),
+                    (qd, jnp.zeros_like(qd), jnp.ones_like(t)))
+    return M, jax.grad(T)(qi, qd, t) - dp - jax.grad(V)(qi, t)
+
+
+@pytest.mark.parametrize("base, crank_driven", [("tensioner_bench_stage2", False), ("two_pulley_T600", False),
+                                                 ("two_pulley_T600", True)])
+def test_hybrid_equations_are_lagrange_with_the_travel(base, crank_driven):
+    """The hybrid model's reduced equations in a transient, M_ii q_i'' = F_ii (drive.reduced_system,
+    and the structured drive.reduced_accelerations), are Lagrange's equations of the drive's
+    energies (to 1e-12), with the crank driven at 600 rpm (the belt's travel prescribed) or free
+    (the travel follows it: c = R theta_c' / lam depends on the crank's rate, which couples the
+    crank to every span through the mass matrix, drive.travel_inertia)."""
+    sc = load_scene(SCENES / f"{base}.toml")
+    model = dataclasses.replace(sc.model, fidelity="ancf", elements_per_span=2, effects=("transport",))
+    pulleys = tuple(dataclasses.replace(p, driven=crank_driven and k == 0, speed_rpm=jnp.asarray(600.0) if k == 0 else p.speed_rpm)
+                    for k, p in enumerate(sc.pulleys))
+    sc = drive.canonical(dataclasses.replace(sc, model=model, pulleys=pulleys))
+    assert drive.travel_follows_drive(sc) is not crank_driven
+    inst = statics.install(sc)
+    n = drive.n_independent(sc)
+    rng = np.random.default_rng(4)
+    qi = drive.installed_coordinates(sc, inst) + 1e-3 * jnp.asarray(rng.standard_normal(n))
+    qd = jnp.asarray(rng.standard_normal(n))
+    # compiled (eager autodiff through the span loops takes tens of seconds)
+    M, F = jax.jit(lambda x, xd: drive.reduced_system(x, xd, sc, inst, t=0.013))(qi, qd)
+    ML, FL = jax.jit(lambda x, xd: _lagrange(sc, inst, x, xd, 0.013))(qi, qd)
+    np.testing.assert_allclose(M, ML, rtol=0, atol=1e-12 * float(jnp.max(jnp.abs(M))))
+    np.testing.assert_allclose(F, FL, rtol=0, atol=1e-12 * float(jnp.max(jnp.abs(F))))
+    rm = drive.reduced_mass(sc, inst)
+    fast = jax.jit(lambda x, xd: drive.reduced_accelerations(x, xd, sc, inst, rm, t=0.013))(qi, qd)
+    ref = jnp.linalg.solve(M, F)
+    np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-10 * float(jnp.max(jnp.abs(ref))))
 
 
 ALL_EFFECTS = ("transport", "gravity", "belt_damping", "bearing_damping", "tensioner_damping", "unbalance",
