@@ -753,7 +753,7 @@ def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_fu
     """
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
     q, v, gamma, J, F = full_motion(qi, qi_dot, scene, inst, speed, t)
-    return _with_travel_inertia(J.T @ M @ J, J.T @ (F - M @ gamma), J, travel_inertia(q, v, gamma, scene, inst, t))
+    return with_travel_inertia(J.T @ M @ J, J.T @ (F - M @ gamma), J, travel_inertia(q, v, gamma, scene, inst, t))
 
 
 def span_coordinate_index(scene: Scene) -> np.ndarray:
@@ -830,7 +830,7 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     # a free drive pulley's travel: its coupling reaches only the rigid rows (k < n_rigid) and
     # the span rows' column k (S^T P = P[idx]); the span block M_ss stays constant
     ti = travel_inertia(q, v, gamma, scene, inst, t)
-    M_rr, F_r = _with_travel_inertia(M_rr, F_r, J_r, ti)
+    M_rr, F_r = with_travel_inertia(M_rr, F_r, J_r, ti)
     if idx.size == 0:
         return _small_spd_solve(M_rr, F_r)
     F_s = r[idx]
@@ -988,7 +988,7 @@ def travel_inertia(q, v, gamma, scene: Scene, inst: Installation, t) -> TravelIn
     return TravelInertia(travel_coordinate(scene), kappa, P_full, pi_cc, h)
 
 
-def _with_travel_inertia(M_ii, F_ii, J, ti: TravelInertia | None):
+def with_travel_inertia(M_ii, F_ii, J, ti: TravelInertia | None):
     """M_ii, F_ii of the reduced equations with the travel's inertia (:func:`travel_inertia`);
     J: dPhi/dq_i (n_full, n_i)."""
     if ti is None:

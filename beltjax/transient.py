@@ -2,8 +2,10 @@
 
 The equations are the reduced ones of :func:`beltjax.drive.reduced_system` with time:
 ``M_ii(q_i, t) q_i'' = F_ii(q_i, q_i', t)`` from the kinematic map ``q = Phi(q_i, t)``
-(pulleys rolling with the belt's prescribed travel, the drive pulley's speed
-fluctuation, unbalanced centres of mass), the listed effects (transport, gravity,
+(pulleys rolling with the belt's travel, prescribed by a driven drive pulley or, when no
+pulley is driven, that of the free drive pulley, whose rate is then the transport speed:
+:func:`beltjax.drive.travel_follows_drive`; the drive pulley's speed fluctuation,
+unbalanced centres of mass), the listed effects (transport, gravity,
 damping of belt, bearings and tensioner) and the loads of the scene ([[torque]],
 [[span_load]]).  The hybrid (ANCF) and rotational (Newton-Euler) fidelities go
 through the same map and the same code; the rotational model has only the rigid
@@ -256,7 +258,7 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     drv0 = jnp.zeros(n)
     q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t)
     ti = drive.travel_inertia(q, v, gamma, scene, inst, t)
-    qdd = jnp.linalg.solve(*drive._with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))
+    qdd = jnp.linalg.solve(*drive.with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))
     a = J @ qdd + gamma
     if ti is not None:  # the rhoA dc/dt force of the travel's own acceleration
         F = F - ti.kappa * qdd[ti.k] * ti.P

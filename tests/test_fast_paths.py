@@ -111,6 +111,36 @@ def test_hybrid_equations_are_lagrange_with_the_travel(base, crank_driven):
     np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-10 * float(jnp.max(jnp.abs(ref))))
 
 
+def test_free_drive_transient_linearises_to_the_modal_analysis():
+    """The tensioner bench (hybrid, 2 elements per span, every pulley free) at 3000 rpm: the
+    transient's equations, whose belt travel follows the crank, linearised at the steady state
+    they start from (eigenvalues of the first-order system, by jacfwd of
+    drive.reduced_accelerations), have the modal analysis' first eight frequencies (which
+    linearise about the steady travel) to 2e-4, and no growing mode; the steady state is one
+    (accelerations below 1e-3 of g)."""
+    sc = load_scene(SCENES / "tensioner_bench_stage2.toml")
+    model = dataclasses.replace(sc.model, fidelity="ancf", elements_per_span=2, effects=("transport",))
+    pulleys = tuple(dataclasses.replace(p, speed_rpm=jnp.asarray(3000.0)) if k == 0 else p for k, p in enumerate(sc.pulleys))
+    sc = drive.canonical(dataclasses.replace(sc, model=model, pulleys=pulleys))
+    assert drive.travel_follows_drive(sc)
+    from beltjax import drive_modal, transient
+
+    inst, qi, qd = transient.initial_state(sc)
+    rm = drive.reduced_mass(sc, inst)
+    f = jax.jit(lambda x, xd: drive.reduced_accelerations(x, xd, sc, inst, rm, t=0.0))
+    n = qi.shape[0]
+    A = np.block([[np.zeros((n, n)), np.eye(n)],
+                  [np.asarray(jax.jacfwd(f, 0)(qi, qd)), np.asarray(jax.jacfwd(f, 1)(qi, qd))]])
+    ev = np.linalg.eigvals(A)
+    hz = np.sort(ev.imag[ev.imag > 2 * np.pi * 1e-2]) / (2 * np.pi)  # the rigid turn of the loop: 0 Hz
+    modal = np.asarray(drive_modal.analyse_modes(sc).frequencies_hz)
+    modal = modal[modal > 0]
+    print(f"\n  transient {np.round(hz[:8], 3)}\n  modal     {np.round(modal[:8], 3)}")
+    assert np.max(np.abs(f(qi, qd))) < 1e-2
+    np.testing.assert_allclose(hz[:8], modal[:8], rtol=2e-4)
+    assert np.max(ev.real) < 1e-6 * np.max(np.abs(ev))
+
+
 ALL_EFFECTS = ("transport", "gravity", "belt_damping", "bearing_damping", "tensioner_damping", "unbalance",
                "speed_fluctuation")
 
