@@ -777,13 +777,16 @@ class ReducedMass(NamedTuple):
 
     M_full: full mass matrix; M_s = M_full[idx] (rows of the span coordinates); chol: Cholesky
     factor (lower) of the constant span block M_ss = M_full[idx][:, idx] (None without spans);
-    m_body: the diagonal of the bodies' block (:func:`body_masses`, kg, kg m^2).
+    m_body: the diagonal of the bodies' block (:func:`body_masses`, kg, kg m^2); BC: the spans'
+    transport matrices when the belt's travel follows a free drive pulley
+    (:func:`span_transport_matrices`), else None.
     """
 
     M_full: jax.Array
     M_s: jax.Array | None
     chol: jax.Array | None
     m_body: jax.Array
+    BC: tuple | None = None
 
 
 def reduced_mass(scene: Scene, inst: Installation, M_full=None) -> ReducedMass:
@@ -795,7 +798,8 @@ def reduced_mass(scene: Scene, inst: Installation, M_full=None) -> ReducedMass:
     if idx.size == 0:
         return ReducedMass(M, None, None, m_body)
     M_s = M[idx]
-    return ReducedMass(M, M_s, jnp.linalg.cholesky(M_s[:, idx]), m_body)
+    BC = span_transport_matrices(scene, inst) if travel_follows_drive(scene) else None
+    return ReducedMass(M, M_s, jnp.linalg.cholesky(M_s[:, idx]), m_body, BC)
 
 
 def _small_matmul_tn(A, B):
@@ -829,7 +833,7 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     M_rr = J_r.T @ (M @ J_r)
     # a free drive pulley's travel: its coupling reaches only the rigid rows (k < n_rigid) and
     # the span rows' column k (S^T P = P[idx]); the span block M_ss stays constant
-    ti = travel_inertia(q, v, gamma, scene, inst, t)
+    ti = travel_inertia(q, v, gamma, scene, inst, t, rm.BC)
     M_rr, F_r = with_travel_inertia(M_rr, F_r, J_r, ti)
     if idx.size == 0:
         return _small_spd_solve(M_rr, F_r)
@@ -949,7 +953,28 @@ class TravelInertia(NamedTuple):
     h: jax.Array
 
 
-def travel_inertia(q, v, gamma, scene: Scene, inst: Installation, t) -> TravelInertia | None:
+def span_transport_matrices(scene: Scene, inst: Installation):
+    """B = rhoA int N^T N' dx (kg/m times m over m: kg) and C = rhoA int N'^T N' dx (kg) of
+    every span, each (n, 4 (N+1), 4 (N+1)): the spans' kinetic energy is
+    1/2 e'^T M e' + c e'^T B e + 1/2 c^2 e^T C e (ancf.kinetic_energy), so its momentum
+    conjugate to the transport speed is pi_c = e'^T B e + c e^T C e."""
+    N = scene.model.elements_per_span
+    idx = span.element_index(N)
+    m = 4 * (N + 1)
+    z = jnp.zeros(8)
+
+    def one(L):
+        Be = jax.jacfwd(ancf.momentum, argnums=0)(z, z, 1.0, scene.belt.rhoA, L)
+        Ce = -ancf.centrifugal_matrix(1.0, scene.belt.rhoA, L)
+        rows, cols = idx[:, :, None], idx[:, None, :]
+        B = jnp.zeros((m, m)).at[rows, cols].add(jnp.broadcast_to(Be, (N, 8, 8)))
+        C = jnp.zeros((m, m)).at[rows, cols].add(jnp.broadcast_to(Ce, (N, 8, 8)))
+        return B, C
+
+    return jax.vmap(one)(element_length(scene, inst))
+
+
+def travel_inertia(q, v, gamma, scene: Scene, inst: Installation, t, BC=None) -> TravelInertia | None:
     """Inertia of the belt's travel when it follows a free drive pulley (hybrid transients).
 
     With c = c_0(t) + kappa phi_d' (:func:`transient_transport_speed`), the spans' kinetic
@@ -958,33 +983,26 @@ def travel_inertia(q, v, gamma, scene: Scene, inst: Installation, t) -> TravelIn
     (-P kappa phi_d'' on the span coordinates: mass coupling J^T P kappa e_k^T), and in the
     row of phi_d the rate of the momentum kappa pi_c, kappa (P . q'' + pi_cc c' + d pi_c/dq . q'),
     whose acceleration terms are the symmetric coupling and kappa^2 pi_cc (the spans' belt
-    mass moving with the crank).  None when the travel is prescribed (driven drive pulley,
-    statics, modes) or the spans are massless (rotational model: there c alone follows).
+    mass moving with the crank).  With pi_c = e'^T B e + c e^T C e
+    (:func:`span_transport_matrices`, or ``BC`` precomputed): P = B e, pi_cc = e^T C e and
+    h = gamma^T B e + e'^T B e' + 2 c e'^T C e + c_0' e^T C e.  None when the travel is
+    prescribed (driven drive pulley, statics, modes) or the spans are massless (rotational
+    model: there c alone follows).
     """
     if t is None or not flexible(scene) or not travel_follows_drive(scene):
         return None
     n = len(scene.route.order)
     ns = n_span_coordinates(scene)
-    idx = span.element_index(scene.model.elements_per_span)
-    Le = element_length(scene, inst)
-    rhoA = scene.belt.rhoA
+    B, C = span_transport_matrices(scene, inst) if BC is None else BC
     c, c0_dot = transient_transport_speed(scene, inst, v, t)
-
-    def pi_c(qs, vs, cc):
-        def T(c_):
-            Ts = jax.vmap(span.span_kinetic_energy, in_axes=(0, 0, None, None, 0, None))(
-                qs.reshape(n, -1), vs.reshape(n, -1), c_, rhoA, Le, idx)
-            return jnp.sum(Ts)
-
-        return jax.grad(T)(cc)
-
-    qs, vs, gs = q[:ns], v[:ns], gamma[:ns]
-    P = jax.grad(pi_c, argnums=1)(qs, vs, c)
-    pi_cc = jax.grad(pi_c, argnums=2)(qs, vs, c)
-    _, h = jax.jvp(pi_c, (qs, vs, c), (vs, gs, jnp.asarray(c0_dot, dtype=q.dtype)))
+    e, ed, g = (x[:ns].reshape(n, -1) for x in (q, v, gamma))
+    Be = jnp.einsum("sij,sj->si", B, e)
+    Ce = jnp.einsum("sij,sj->si", C, e)
+    pi_cc = jnp.sum(e * Ce)
+    h = jnp.sum(g * Be) + jnp.sum(ed * jnp.einsum("sij,sj->si", B, ed)) + 2 * c * jnp.sum(ed * Ce) + c0_dot * pi_cc
     d = drive_pulley(scene)
     kappa = scene.route.senses[d] * inst.radii[d] / inst.stretch
-    P_full = jnp.concatenate([P, jnp.zeros(q.shape[0] - ns, dtype=q.dtype)])
+    P_full = jnp.concatenate([Be.reshape(-1), jnp.zeros(q.shape[0] - ns, dtype=q.dtype)])
     return TravelInertia(travel_coordinate(scene), kappa, P_full, pi_cc, h)
 
 
