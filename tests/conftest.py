@@ -23,3 +23,19 @@ def strip(ref):
     """The thesis' steel strip (Table 3.1) as (L, EA, EI, rhoA)."""
     p = ref["cantilever_strip"]["properties"]
     return p["L"], p["E"] * p["A"], p["E"] * p["I"], p["rho"] * p["A"]
+
+
+@pytest.fixture(autouse=True)
+def _persistent_compile_cache_off_after_each_test():
+    """The in-process command-line tests switch JAX's persistent compilation cache on for the
+    whole process (beltjax.cli._enable_compile_cache, every compilation written to disk);
+    switch it off again after each test, so that the rest of the suite compiles in memory only.
+    Left on, a full run wrote every later compilation to disk, and twice in a row aborted
+    inside JAX's cache write (put_executable_and_time) in test_sweep, 85 % into the run."""
+    yield
+    import jax
+    from jax._src import compilation_cache
+
+    if jax.config.jax_compilation_cache_dir is not None:
+        jax.config.update("jax_compilation_cache_dir", None)
+        compilation_cache.reset_cache()
