@@ -39,3 +39,19 @@ def _persistent_compile_cache_off_after_each_test():
     if jax.config.jax_compilation_cache_dir is not None:
         jax.config.update("jax_compilation_cache_dir", None)
         compilation_cache.reset_cache()
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compiled_functions_freed_after_each_module():
+    """Free every compiled function when a test module ends (the modules share compiled
+    functions within themselves, through module fixtures).  Kept for the whole run, the
+    executables of some 500 tests accumulated until XLA crashed while compiling in
+    test_sweep, 85 % into the run (a segmentation fault in backend_compile_and_load, and
+    before it an abort inside the cache write), twice on this 2-core machine."""
+    yield
+    import gc
+
+    import jax
+
+    jax.clear_caches()
+    gc.collect()
