@@ -396,6 +396,8 @@ def cmd_simulate(args) -> int:
                  settle_fraction=args.settle)
     print(f"transient of {title}")
     print(simulation_table(res, summary))
+    for record in res.meta["slack_spans"]:
+        print(transient.slack_warning(record))
     print(f"wrote {out / 'simulation.npz'}, {out / 'simulation.json'}, {out / 'simulation.png'} "
           f"and {out / 'spectra.png'}")
     return 0

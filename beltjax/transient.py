@@ -49,7 +49,8 @@ from beltjax import drive, signals, statics
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
 
-__all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt", "default_solver"]
+__all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt", "default_solver",
+           "slack_spans", "slack_warning"]
 
 
 class TransientError(ValueError):
@@ -351,7 +352,8 @@ class SimulationResult:
 
     t (nt,) s; channels: name -> array (nt,), (nt, k) or (nt, k, 2) in the units of
     :data:`UNITS`; columns: name -> labels of the k columns; meta: solver, step, steps,
-    wall and compile times (s), scene; y: the state (nt, 2 n_i) for further use.
+    wall and compile times (s), scene, slack_spans (:func:`slack_spans`); y: the state
+    (nt, 2 n_i) for further use.
     """
 
     t: np.ndarray
@@ -401,6 +403,31 @@ def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
             "the model has no slip: a driven pulley's speed_rpm / acceleration must match the belt's motion, "
             "and a free pulley must not be torqued beyond what the belt can carry"
         )
+
+
+def slack_spans(t, tensions, names) -> list[dict]:
+    """Spans whose elastic tension (N) fell to zero or below at an output sample of t (s).
+
+    Both fidelities assume taut spans wrapped on the pulleys: a belt cannot push, so where a
+    span's tension goes negative the real belt hangs slack and the model's answer there is
+    not physical.  Returns one record per such span: span, min_tension_N, t_first_s,
+    t_last_s (the first and last slack samples) and samples (how many); [] when all stayed
+    taut.  Dips shorter than the output interval can pass between samples.
+    """
+    out = []
+    for j, name in enumerate(names):
+        slack = np.flatnonzero(tensions[:, j] <= 0.0)
+        if slack.size:
+            out.append(dict(span=name, min_tension_N=float(np.min(tensions[:, j])), t_first_s=float(t[slack[0]]),
+                            t_last_s=float(t[slack[-1]]), samples=int(slack.size)))
+    return out
+
+
+def slack_warning(record: dict) -> str:
+    """One line saying that (and when) a span went slack, from a :func:`slack_spans` record."""
+    return (f"warning: span {record['span']!r} went slack ({record['samples']} output samples between t = "
+            f"{record['t_first_s']:.4g} and {record['t_last_s']:.4g} s, tension down to {record['min_tension_N']:.4g} N): "
+            "the model assumes taut spans, so its results there are not physical")
 
 
 _RESULT_MESSAGES = {
@@ -535,5 +562,6 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         wall_s=wall,
         first_chunk_s=compile_s,
         installation_tension_N=float(inst.tension),
+        slack_spans=slack_spans(t, chans["span_tensions_N"], cols["span_tensions_N"]),
     )
     return SimulationResult(t=t, channels=chans, columns=cols, meta=meta, y=ys)

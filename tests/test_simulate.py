@@ -21,9 +21,10 @@ Model facts behind the tolerances
   (tests/test_transient.py), so a transient shows f_dt = atan(pi f dt) / (pi dt) for a mode
   of frequency f (0.13 % low at 98 Hz and dt = 2e-4 s).
 
-Cost (2 shared CPU cores): about 3 minutes for the file, almost all of it compiling.  Five
+Cost (2 shared CPU cores): about 4 minutes for the file, almost all of it compiling.  Six
 rotational structures (9-14 s to compile the integrator, then ~20 us a step, 50 000 steps in
-1 s) and one hybrid structure (6 ANCF elements per span: 17 s, then ~0.3 ms a step); runs of
+1 s) and three hybrid ones (the two-pulley bench with 6 ANCF elements per span: 17 s, then
+~0.3 ms a step; the tensioner bench with 4: 35 s, then ~0.1 ms a step); runs of
 one structure differ only in numbers, the [initial] table and the span-load timing, and use
 one chunk length (``CHUNK``) and, within a fixture, one duration, so that they share the
 compiled integrator and output function.  (A new [initial] table still recompiles the
@@ -437,11 +438,14 @@ def test_fluctuation_and_unbalance_lines(fluct):
     * alternator bearing (thesis F1): its own unbalance at r x 10 = 27.07 Hz (1 %), with
       +-20 Hz side lines (7.07, 47.07 Hz); no 10 Hz line (fixed centres: the crank's
       unbalance stays in the crank's bearing);
-    * 40 Hz: from the Green-Lagrange law's quadratic term, (3/4) EA lam delta^2 per span
-      with delta the 20 Hz strain (2.2 mN), plus the centrifugal force of the fluctuating belt
-      speed, rhoA R^2 dw^2 / (2 lam) (3.0 mN); together 5.2 mN (5 % allowed), 3e-4 of the
-      20 Hz line.  The thesis sees a 40 Hz line ("first harmonic") that
-      our model does not make at a visible level.
+    * 40 Hz (the thesis' "first harmonic" of the fluctuation): the system is linear but for
+      two quadratic terms, the Green-Lagrange law's (3/4) EA lam delta^2 per span with delta
+      the 20 Hz strain (2.2 mN) and the centrifugal force of the fluctuating belt speed,
+      rhoA R^2 dw^2 / (2 lam) (3.0 mN; the thesis' T_c = rhoA c^2, eq. 4.17, has it too).
+      Both are the same in the two spans, so they reach the crank bearing as the in-phase
+      pair times t_1 - t_2 (10 mN along x): a line 3e-3 of the bearing's 20 Hz line, seen on
+      the log-scale spectrum (``beltjax simulate``'s spectra.png), at the size these two
+      terms give it (5 %).  The thesis prints no amplitude for it.
     """
     res, sc = fluct["forced"], fluct["forced_scene"]
     st = fluct["modes"].statics
@@ -505,9 +509,14 @@ def test_fluctuation_and_unbalance_lines(fluct):
               f"(Green-Lagrange {gl40 * 1e3:.3f} mN + centrifugal {cf40 * 1e3:.3f} mN)")
         assert abs(a40 / (gl40 + cf40) - 1) < 0.05  # the two come in phase
         assert a40 < 1e-3 * a20
-    unbalance = _rotating(t, z, s * f0)
+    # ... and on the crank bearing, the in-phase pair along t_1 - t_2
+    a40 = np.mean([_tone(t, res.channels["span_forces_N"][k, j], 2 * f20) for j in range(2)])
+    hub40 = np.abs(a40 * (tangents[0] - tangents[1]))  # the route's second span ends on the crank
     for ax in (0, 1):
-        assert _tone(t, F[:, ax], 2 * f20) < 1e-3 * unbalance
+        ours = _tone(t, F[:, ax], 2 * f20)
+        print(f"  crank bearing, {'xy'[ax]} at 40 Hz: {ours * 1e3:.3f} mN (in-phase span pair {hub40[ax] * 1e3:.3f} mN)")
+        assert abs(ours - hub40[ax]) < 0.05 * np.max(hub40), (ax, ours, hub40)
+    assert np.max(hub40) > 1e-3 * hub20
 
 
 # =========================================================================== 7.1.1.4: run-up
@@ -875,6 +884,90 @@ def test_tensioner_installation_settles_on_the_static_equilibrium(installation):
     assert rise < 1e-9 * released
 
 
+# =========================================================================== 7.2.1.3: tensioner, fluctuation and load
+
+
+@pytest.fixture(scope="module")
+def tensioner_pulses():
+    """Tensioner Sim 2 (thesis 7.2.1.3): crank at 600 rpm with 1 deg at 20 Hz, 30 N m on the
+    alternator over 1-3 s and 5-7 s."""
+    sc = load_scene(SCENES / "sim_tensioner_fluctuation_load.toml")
+    return dict(scene=sc, res=_simulate(sc, 8.0, "tensioner, fluctuation and alternator pulses"))
+
+
+def test_tensioner_fluctuation_and_load_pulses(tensioner_pulses):
+    """Thesis 7.2.1.3 (Figs. 7.41-7.54), its statements one by one.  Windows of whole 20 Hz
+    periods: before the first pulse (0.5-1 s), late in each pulse (2-3 s, 6-7 s; the arm's
+    ringing after the step, damping ratio ~0.09 at ~21 Hz, has decayed 1e-4 by then), after
+    it (4-5 s).
+
+    * the tensioner vibrates at the fluctuation's frequency (20 Hz dominant) and each pulse
+      opens the arm (thesis: the angle grows, T1 stretches); it comes back to where it was
+      (4-5 s vs 0.5-1 s: 1e-3 deg) and both pulses give the same state (1e-6 deg);
+    * the crank's fluctuation (41.9 rpm peak to peak, 2x) reaches the other pulleys, more
+      strongly at the idler and the alternator (thesis Figs. 7.44-7.46): their 20 Hz speed
+      swing exceeds the crank's, and the rigid-belt ratio R_c / R_i x the crank's;
+    * in the mean the alternator's moment goes into T1 alone: T1 - T3 = M / R_a and T2 = T3
+      (1e-4; no bearing damping), and the crank's holding torque rises by M R_c / R_a (thesis
+      Fig. 7.52: "the torque demand rises proportionally"), 1e-4;
+    * the tensioner keeps T2 and T3 near their level (within 5 %; the spring's tension k
+      (theta_0 - theta) / arm(theta) rises 3.5 % as the arm opens) while T1 takes 800 N, and
+      T1's 20 Hz swing is larger than T2's and T3's (thesis Figs. 7.53-7.54), unloaded and
+      loaded;
+    * the 30 N m step (applied in zero time) slackens the spans for a few ms after each
+      pulse edge (T2, T3 at its start, T1 at its end): reported in meta["slack_spans"]; the
+      drive is taut everywhere else.
+    """
+    res, sc = tensioner_pulses["res"], tensioner_pulses["scene"]
+    load = sc.torques[0]
+    M = float(load.mean_Nm)
+    crank, alt, ten = sc.pulley("crank"), sc.pulley("alternator"), sc.tensioner
+    Ra, Rc, Ri = float(alt.radius), float(crank.radius), float(ten.pulley_radius)
+    f = float(crank.fluctuation_frequency_hz)
+    W = {name: _window(res, a, b) for name, a, b in
+         (("before", 0.5, 1.0), ("pulse", 2.0, 3.0), ("after", 4.0, 5.0), ("pulse2", 6.0, 7.0))}
+    arm = res.channels["arm_angle_deg"]
+    mean = {k: arm[w].mean() for k, w in W.items()}
+    print(f"\n  arm: {mean['before']:.3f} deg before, {mean['pulse']:.3f} deg loaded, {mean['after']:.3f} deg after")
+    assert mean["pulse"] > mean["before"] + 2.0
+    assert abs(mean["after"] - mean["before"]) < 1e-3 and abs(mean["pulse2"] - mean["pulse"]) < 1e-6
+    for w in (W["before"], W["pulse"]):
+        assert abs(_dominant(res.t[w], arm[w]) / f - 1) < 0.01
+    speeds = {name: _col(res, "pulley_speeds_rpm", name) for name in ("crank", "tensioner", "alternator")}
+    F = {name: _col(res, "span_forces_N", name) for name in res.columns["span_forces_N"]}
+    T1, T2, T3 = F["alternator-crank"], F["crank-tensioner"], F["tensioner-alternator"]
+    torque = _col(res, "drive_torques_Nm", "crank")
+    for key in ("before", "pulse"):
+        w = W[key]
+        t = res.t[w]
+        swing = {name: _tone(t, v[w], f) for name, v in speeds.items()}
+        print(f"  {key}: 20 Hz speed swing {swing} rpm; mean T1 {T1[w].mean():.2f}, T2 {T2[w].mean():.2f}, "
+              f"T3 {T3[w].mean():.2f} N; 20 Hz swing T1 {_tone(t, T1[w], f):.1f}, T2 {_tone(t, T2[w], f):.1f}, "
+              f"T3 {_tone(t, T3[w], f):.1f} N; crank torque {torque[w].mean():.3f} N m")
+        assert abs(swing["crank"] / (math.radians(float(crank.fluctuation_amplitude_deg)) * 2 * math.pi * f
+                                    * 60 / (2 * math.pi)) - 1) < 1e-3
+        assert swing["tensioner"] > Rc / Ri * swing["crank"] and swing["alternator"] > Rc / Ra * swing["crank"]
+        assert _tone(t, T1[w], f) > max(_tone(t, T2[w], f), _tone(t, T3[w], f))
+        assert abs(T2[w].mean() / T3[w].mean() - 1) < 1e-4
+    p, b = W["pulse"], W["before"]
+    assert abs((T1[p].mean() - T3[p].mean()) / (M / Ra) - 1) < 1e-4
+    assert abs(T1[b].mean() - T3[b].mean()) < 1e-4 * M / Ra
+    assert abs((torque[b].mean() - torque[p].mean()) / (M * Rc / Ra) - 1) < 1e-4
+    for T in (T2, T3):
+        assert abs(T[p].mean() / T[b].mean() - 1) < 0.05
+    # slack only just after the pulse edges, and reported
+    slack = {r["span"]: r for r in res.meta["slack_spans"]}
+    print(f"  slack: {slack}")
+    assert set(slack) == {"crank-tensioner", "tensioner-alternator", "alternator-crank"}
+    taut = np.ones(res.t.size, bool)
+    for edge in (1.0, 3.0, 5.0, 7.0):
+        taut &= ~((res.t >= edge) & (res.t < edge + 0.1))
+    assert np.all(res.channels["span_tensions_N"][taut] > 0)
+    for name in ("crank-tensioner", "tensioner-alternator"):
+        assert 1.0 <= slack[name]["t_first_s"] < 1.1
+    assert 3.0 <= slack["alternator-crank"]["t_first_s"] < 3.1
+
+
 # =========================================================================== 7.2.1.4: tensioner run-up
 
 
@@ -1204,3 +1297,113 @@ def test_free_drive_at_rest_under_gravity_stays_at_rest(hybrid):
     print(f"\n  free drive under gravity: residual on the crank {residual[0]:.2e} N m, "
           f"turned {turned:.3f} deg in 50 ms")
     assert abs(residual[0]) < 1e-9 and turned < 1e-6
+
+
+# =========================================================================== 7.2.2.4: hybrid tensioner
+
+
+def _tensioner_hybrid_scene(arm_moment, span_force, frequency):
+    """The 7.2.2.4 scene with a moment on the arm and a force on the idler-alternator span's
+    middle (both always listed, so that every run shares one compiled model)."""
+    text = substitute(
+        scene_text("sim_tensioner_arm_resonance.toml"),
+        ("amplitude_Nm = 0.01 ", f"amplitude_Nm = {float(arm_moment)!r} "),
+        ("frequency_hz = 46.73 ", f"frequency_hz = {float(frequency)!r} "),
+    )
+    text += (f'\n[[span_load]]\nspan = "tensioner-alternator"\nnode = 2\namplitude_N = {float(span_force)!r}\n'
+             f"frequency_hz = {float(frequency)!r}\n")
+    return loads_scene(text)
+
+
+@pytest.fixture(scope="module")
+def tensioner_hybrid():
+    """Thesis 7.2.2.4: the hybrid tensioner bench at rest driven at four natural frequencies
+    of its own modal analysis, 1 s each: a moment on the arm at the upper span's and at the
+    idler-alternator span's 1st transverse mode and at the 2nd rotational mode, and a force
+    on the idler-alternator span at the tensioner mode."""
+    base = _tensioner_hybrid_scene(0.0, 0.0, 1.0)
+    modes = drive_modal.analyse_modes(base)
+    st = modes.statics
+    sc = drive.canonical(base)
+    qi = jnp.asarray(st.qi)
+    lin = drive_modal.modes_at(sc, qi, st.inst, 0.0, False)  # M-orthonormal shapes
+    names, order = drive.span_names(sc), list(sc.route.order)
+    N = sc.model.elements_per_span
+
+    def outputs(x):  # arm angle, alternator rotation (rad), middle-node normal displacements (m)
+        phis, theta = drive.angles_and_arm(x, sc, st.inst)
+        E, _ = drive.split_full(drive.full_coordinates(x, sc, st.inst), sc)
+
+        def normal(span):
+            s = names.index(span)
+            tan = st.inst.span_tangent[s]
+            return E[s, 4 * (N // 2) : 4 * (N // 2) + 2] @ jnp.stack([-tan[1], tan[0]])
+
+        return jnp.stack([theta, phis[order.index("alternator")], normal("alternator-crank"),
+                          normal("tensioner-alternator")])
+
+    C = np.asarray(jax.jacfwd(outputs)(qi))
+    pick = lambda label: next(i for i, lab in enumerate(modes.labels) if lab.startswith(label))  # noqa: E731
+    arm_moment, span_force = 0.01, 0.05  # N m, N
+    cases = dict(  # mode, arm moment, span force, output row
+        upper=(pick("1st transverse alternator-crank"), arm_moment, 0.0, 2),
+        idler_span=(pick("1st transverse tensioner-alternator"), arm_moment, 0.0, 3),
+        rotational=(pick("2nd rotational"), arm_moment, 0.0, 1),
+        tensioner=(pick("1st rotational (tensioner"), 0.0, span_force, 0),
+    )
+    dt = float(base.simulation.dt_s)
+    out = dict(modes=modes, cases={})
+    for name, (r, M, F, row) in cases.items():
+        f = float(modes.frequencies_hz[r])
+        phi = np.real(np.asarray(lin["shapes"])[:, r])
+        Q = M * C[0] + F * C[3]  # generalised force of the moment on the arm / the normal force
+        slope = abs(C[row] @ phi) * abs(phi @ Q) / (2 * 2 * math.pi * f)
+        res = _simulate(_tensioner_hybrid_scene(M, F, _midpoint(f, dt)), 1.0,
+                        f"hybrid tensioner, {name}: {M} N m on the arm, {F} N on the span at {f:.3f} Hz")
+        out["cases"][name] = dict(res=res, f=f, f_drive=_midpoint(f, dt), row=row, slope=slope, label=modes.labels[r])
+    return out
+
+
+def _complex_tone(t, x, f):
+    w = np.hanning(t.size)
+    return 2 * np.sum(w * (x - x.mean()) * np.exp(-2j * np.pi * f * t)) / np.sum(w)
+
+
+def test_tensioner_excitations_put_the_drive_in_resonance(ref, tensioner_hybrid):
+    """Thesis 7.2.2.4 (Figs. 7.81-7.84): rotational, longitudinal and transverse coordinates
+    are coupled, so that
+
+    * a moment on the tensioner at the upper span's 1st transverse frequency puts that span
+      in resonance, although it does not touch the tensioner (the arm's swing stretches the
+      spans at the idler, the pulleys pass it on as a tension swing of the upper span, and
+      its sag under the belt's weight turns that into transverse motion);
+    * the same at the idler-alternator span's 1st transverse frequency puts that span in
+      resonance, and at the 2nd rotational frequency the alternator;
+    * a force on the idler-alternator span at the tensioner's frequency puts the arm in
+      resonance.
+
+    Each response grows linearly at the rate the modal analysis gives for an undamped mode
+    forced at its frequency, |c.phi| |phi.Q| / (2 omega) (phi M-orthonormal, Q the load's
+    generalised force, c the output's row of the kinematic map): 1 % (measured 0.02-0.2 %),
+    between the windows
+    0.2-0.6 s and 0.6-1.0 s (complex amplitudes, so that the constant off-resonant part
+    drops out).  The load is driven at the frequency the midpoint rule shows for the mode,
+    atan(pi f dt) / (pi dt).  The frequencies are this model's (arm at 46.8 deg, 455.6 N):
+    the thesis' (at 498 N) are printed beside them.
+    """
+    rows = ref["tensioner_bench_stage2"]["modal"]["modes"]
+    thesis = {"upper": rows[2][1], "idler_span": rows[3][1], "rotational": rows[5][1], "tensioner": rows[1][1]}
+    print()
+    for name, c in tensioner_hybrid["cases"].items():
+        res, f = c["res"], c["f_drive"]
+        x = [np.radians(res.channels["arm_angle_deg"]), np.radians(_col(res, "pulley_rotations_deg", "alternator")),
+             _col(res, "node_displacements_m", "alternator-crank:2"),
+             _col(res, "node_displacements_m", "tensioner-alternator:2")][c["row"]]
+        early, late = _window(res, 0.2, 0.6), _window(res, 0.6, 1.0)
+        z1, z2 = _complex_tone(res.t[early], x[early], f), _complex_tone(res.t[late], x[late], f)
+        slope = abs(z2 - z1) / 0.4
+        print(f"  {name}: {c['label']} at {c['f']:.3f} Hz (thesis {thesis[name]} Hz): response grows "
+              f"{slope:.4e} per s (modal analysis {c['slope']:.4e}); amplitude {abs(z1):.3e} -> {abs(z2):.3e}")
+        assert abs(slope / c["slope"] - 1) < 0.01, (name, slope, c["slope"])
+        assert 1.9 < abs(z2) / abs(z1) < 2.1  # from rest: the window means grow as 0.4 s : 0.8 s
+        assert res.meta["slack_spans"] == []
