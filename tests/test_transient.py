@@ -42,7 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from beltjax import analyse_span
+from beltjax import analyse_span, transient
 from beltjax.ancf import Section
 from beltjax.dynamics import simulate_span, span_jacobi_integral
 from beltjax.integrators import GeneralizedAlpha
@@ -316,3 +316,18 @@ def test_moving_span_frequency_and_jacobi_integral(strip):
     peak = np.fft.rfftfreq(16 * len(mid), ts[1] - ts[0])[np.argmax(spectrum)]
     print(f"\nmoving span: peak {peak:.2f} Hz, linear {linear:.2f} Hz, Jacobi drift {np.max(np.abs(J - J[0])) / J[0]:.1e}")
     assert abs(peak - linear) < 1.0 / (ts[-1] - ts[0])
+
+
+def test_slack_spans_are_found_and_named():
+    """A span whose tension reaches zero or below is reported with its times and lowest
+    tension, in one line; taut spans are not."""
+    t = np.linspace(0.0, 1.0, 11)
+    T = np.stack([np.full(11, 400.0), 400.0 - 900.0 * np.exp(-((t - 0.5) / 0.2) ** 2)], axis=1)
+    rec = transient.slack_spans(t, T, ["a-b", "b-a"])
+    assert [r["span"] for r in rec] == ["b-a"]
+    r = rec[0]
+    assert r["samples"] == 3 and r["t_first_s"] == pytest.approx(0.4) and r["t_last_s"] == pytest.approx(0.6)
+    assert r["min_tension_N"] == pytest.approx(-500.0)
+    line = transient.slack_warning(r)
+    assert "\n" not in line and "'b-a'" in line and "-500 N" in line
+    assert transient.slack_spans(t, T[:, :1], ["a-b"]) == []
