@@ -64,21 +64,26 @@ def _simulate(scene, t_end, label):
     return res
 
 
-def _tone(t, x, f):
-    """Amplitude of the sine of frequency f (Hz) in x(t): Hann-windowed single-frequency DFT.
+def _complex_tone(t, x, f):
+    """Complex amplitude (with its phase) of the sine of frequency f (Hz) in x(t):
+    Hann-windowed single-frequency DFT.
 
     Exact for a pure tone at f (any f, not only bin frequencies) up to the leakage of its
     mirror image at -f and of other lines, small when they lie several bins (1 / duration)
     away."""
     w = np.hanning(t.size)
-    return 2 * abs(np.sum(w * (x - x.mean()) * np.exp(-2j * np.pi * f * t))) / np.sum(w)
+    return 2 * np.sum(w * (x - x.mean()) * np.exp(-2j * np.pi * f * t)) / np.sum(w)
+
+
+def _tone(t, x, f):
+    """Amplitude of the sine of frequency f (Hz) in x(t) (see :func:`_complex_tone`)."""
+    return abs(_complex_tone(t, x, f))
 
 
 def _rotating(t, z, f):
     """Amplitude of the component of the complex signal z = Fx + i Fy that turns at f (Hz;
     positive counter-clockwise)."""
-    w = np.hanning(t.size)
-    return abs(np.sum(w * (z - z.mean()) * np.exp(-2j * np.pi * f * t))) / np.sum(w)
+    return abs(_complex_tone(t, z, f)) / 2
 
 
 def _midpoint(f, dt):
@@ -897,9 +902,8 @@ def tensioner_pulses():
 
 def test_tensioner_fluctuation_and_load_pulses(tensioner_pulses):
     """Thesis 7.2.1.3 (Figs. 7.41-7.54), its statements one by one.  Windows of whole 20 Hz
-    periods: before the first pulse (0.5-1 s), late in each pulse (2-3 s, 6-7 s; the arm's
-    ringing after the step, damping ratio ~0.09 at ~21 Hz, has decayed 1e-4 by then), after
-    it (4-5 s).
+    periods: before the first pulse (0.5-1 s), late in each pulse (2-3 s, 6-7 s; the ringing
+    of the arm's 26 Hz mode after the step has died out by then), after it (4-5 s).
 
     * the tensioner vibrates at the fluctuation's frequency (20 Hz dominant) and each pulse
       opens the arm (thesis: the angle grows, T1 stretches); it comes back to where it was
@@ -1355,18 +1359,14 @@ def tensioner_hybrid():
     out = dict(modes=modes, cases={})
     for name, (r, M, F, row) in cases.items():
         f = float(modes.frequencies_hz[r])
+        f_drive = _midpoint(f, dt)
         phi = np.real(np.asarray(lin["shapes"])[:, r])
         Q = M * C[0] + F * C[3]  # generalised force of the moment on the arm / the normal force
         slope = abs(C[row] @ phi) * abs(phi @ Q) / (2 * 2 * math.pi * f)
-        res = _simulate(_tensioner_hybrid_scene(M, F, _midpoint(f, dt)), 1.0,
+        res = _simulate(_tensioner_hybrid_scene(M, F, f_drive), 1.0,
                         f"hybrid tensioner, {name}: {M} N m on the arm, {F} N on the span at {f:.3f} Hz")
-        out["cases"][name] = dict(res=res, f=f, f_drive=_midpoint(f, dt), row=row, slope=slope, label=modes.labels[r])
+        out["cases"][name] = dict(res=res, f=f, f_drive=f_drive, row=row, slope=slope, label=modes.labels[r])
     return out
-
-
-def _complex_tone(t, x, f):
-    w = np.hanning(t.size)
-    return 2 * np.sum(w * (x - x.mean()) * np.exp(-2j * np.pi * f * t)) / np.sum(w)
 
 
 def test_tensioner_excitations_put_the_drive_in_resonance(ref, tensioner_hybrid):
@@ -1385,9 +1385,8 @@ def test_tensioner_excitations_put_the_drive_in_resonance(ref, tensioner_hybrid)
     Each response grows linearly at the rate the modal analysis gives for an undamped mode
     forced at its frequency, |c.phi| |phi.Q| / (2 omega) (phi M-orthonormal, Q the load's
     generalised force, c the output's row of the kinematic map): 1 % (measured 0.02-0.2 %),
-    between the windows
-    0.2-0.6 s and 0.6-1.0 s (complex amplitudes, so that the constant off-resonant part
-    drops out).  The load is driven at the frequency the midpoint rule shows for the mode,
+    between the windows 0.2-0.6 s and 0.6-1.0 s (complex amplitudes, so that the constant
+    off-resonant part drops out).  The load is driven at the frequency the midpoint rule shows for the mode,
     atan(pi f dt) / (pi dt).  The frequencies are this model's (arm at 46.8 deg, 455.6 N):
     the thesis' (at 498 N) are printed beside them.
     """
