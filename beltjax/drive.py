@@ -931,10 +931,15 @@ def transient_transport_speed(scene: Scene, inst: Installation, v, t):
     return _rim_transport_speed(scene, inst, Bd), xdd / inst.stretch
 
 
+def _travel_gain(scene: Scene, inst: Installation):
+    """kappa = s R / lam (m/rad): the drive pulley's rim travel per radian, in unstretched belt."""
+    d = drive_pulley(scene)
+    return scene.route.senses[d] * inst.radii[d] / inst.stretch
+
+
 def _rim_transport_speed(scene: Scene, inst: Installation, bodies_dot):
     """c = s R theta' / lam (m/s of unstretched belt) of the drive pulley; bodies_dot (nb, 3)."""
-    d = drive_pulley(scene)
-    return scene.route.senses[d] * inst.radii[d] * bodies_dot[d, 2] / inst.stretch
+    return _travel_gain(scene, inst) * bodies_dot[drive_pulley(scene), 2]
 
 
 class TravelInertia(NamedTuple):
@@ -1000,8 +1005,7 @@ def travel_inertia(q, v, gamma, scene: Scene, inst: Installation, t, BC=None) ->
     Ce = jnp.einsum("sij,sj->si", C, e)
     pi_cc = jnp.sum(e * Ce)
     h = jnp.sum(g * Be) + jnp.sum(ed * jnp.einsum("sij,sj->si", B, ed)) + 2 * c * jnp.sum(ed * Ce) + c0_dot * pi_cc
-    d = drive_pulley(scene)
-    kappa = scene.route.senses[d] * inst.radii[d] / inst.stretch
+    kappa = _travel_gain(scene, inst)
     P_full = jnp.concatenate([Be.reshape(-1), jnp.zeros(q.shape[0] - ns, dtype=q.dtype)])
     return TravelInertia(travel_coordinate(scene), kappa, P_full, pi_cc, h)
 
