@@ -7,6 +7,11 @@ Not synthesised: the frequencies are the bench measurements printed in the thesi
   "experiment" column; modes without a measurement are left out).  Fitted: EI (one value) and
   the unstretched belt length of each configuration (the installation tension was set by
   moving the alternator, so each configuration has its own effective length).
+* ``tensioner_modal/``: the tensioner bench at spring preload stage 2 (Table 7.9, "experiment"
+  column, its 13 transverse modes in the three spans).  Fitted: the unstretched belt length and
+  the spring preload angle, i.e. the belt's effective length on this bench and the spring
+  moment that holds it; the arm angle and the tension then follow.  The two rotational modes
+  are left out: both move the arm, whose centre of mass (the thesis' x_cm1) is not printed.
 
 Run from the repository root: ``python identification/examples/make_bench_modal.py``.
 """
@@ -47,6 +52,40 @@ def main() -> None:
         ]
         lines += [_mode_line(shape, f_exp) for _, _, f_exp, shape in c["modes"] if f_exp is not None]
         lines += ["]", ""]
+    (out / "dataset.toml").write_text("\n".join(lines))
+    print(f"wrote {out / 'dataset.toml'}")
+    _tensioner(ref)
+
+
+#: the thesis' span names (reference "spans") -> this model's span names (route order)
+_SPANS = {"T1": "alternator-crank", "T2": "crank-tensioner", "T3": "tensioner-alternator"}
+
+
+def _tensioner(ref) -> None:
+    stage2 = ref["tensioner_bench_stage2"]
+    out = HERE / "tensioner_modal"
+    out.mkdir(exist_ok=True)
+    lines = [
+        "# Modal fit of the thesis' tensioner bench, spring preload stage 2: the measured transverse",
+        "# frequencies of Table 7.9 (written by make_bench_modal.py from",
+        "# ../shared/reference/thesis_reference.json; measured on the bench, not synthesised).",
+        "# The rotational modes are left out: they move the arm, whose centre of mass is not printed.",
+        "#   beltjax fit identification/examples/tensioner_modal/dataset.toml",
+        "[modal]",
+        'parameters = ["belt.length", "tensioner.spring_preload_deg"]',
+        "",
+        "[[modal.configuration]]",
+        'name = "stage2"',
+        'scene = "../../../scenes/tensioner_bench_stage2.toml"',
+        "modes = [",
+    ]
+    for _, _, f_exp, shape in stage2["modal"]["modes"]:
+        label, _, span = shape.partition(" (")
+        if f_exp is None or "transverse" not in label:
+            continue
+        span = _SPANS[span.rstrip(")")]
+        lines.append(f'  {{ label = "{label}", span = "{span}", frequency_hz = {f_exp} }},')
+    lines += ["]", ""]
     (out / "dataset.toml").write_text("\n".join(lines))
     print(f"wrote {out / 'dataset.toml'}")
 
