@@ -59,6 +59,10 @@ from identification.data import DataError, number
 GROUP_RTOL = 5e-3
 #: a measured mode farther than this (relative) from every candidate has no matching mode
 MATCH_RTOL = 0.3
+#: a Levenberg-Marquardt round ends when an iteration lowers the loss by less than this fraction
+STALL_RTOL = 1e-6
+#: matching rounds at most (the modes are matched again after each round while the matches move)
+MAX_ROUNDS = 3
 #: smallest accepted ratio of the scaled Jacobian's singular values (identifiability)
 IDENTIFIABLE_RCOND = 1e-6
 #: parameters fitted in log space (positive by nature)
@@ -529,7 +533,9 @@ def _least_squares(res, jac):
             hist.append(0.5 * float(r @ r))
             if progress:
                 print(f"  LM {it:3d}  loss {hist[-1]:.6g}  step {np.max(np.abs(dx)):.2e}", flush=True)
-            if np.max(np.abs(dx)) < 1e-9 or hist[-2] - hist[-1] <= 1e-12 * hist[-2]:
+            # converged, or stalled: a measured mode's matched model mode (fixed by its index in
+            # the sorted spectrum) crossed another one; the caller matches again from here
+            if np.max(np.abs(dx)) < 1e-9 or hist[-2] - hist[-1] <= STALL_RTOL * hist[-2]:
                 break
         return jnp.asarray(x), hist, it
 
@@ -568,12 +574,12 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
     x = jnp.zeros(len(lay.names))
     hist_all, rounds, iterations = [], 0, 0
     before = None
-    # match at the start; refit while the matches move (at most 3 rounds)
+    # match at the start; refit while the matches move (at most MAX_ROUNDS rounds)
     Wlist = None
     sig0 = 1.0 if problem.sigma_hz is None else problem.sigma_hz
 
     minimise = _least_squares(residuals, jacobian)
-    for rounds in range(1, 4):
+    for rounds in range(1, MAX_ROUNDS + 1):
         p = np.asarray(_to_params(x, lay))
         labelled = []
         for i, c in enumerate(confs):
