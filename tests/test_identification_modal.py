@@ -156,7 +156,8 @@ def test_tensioner_bench_fit_locates_the_arm(ref, tmp_path):
       that holds the arm is within 5 % of the printed spring k (theta_0 - theta) at the fitted
       angle (at the thesis' 46.8 deg and 497 N it would be 9 % more: tests/test_drive.py);
     * the arm sits at 38-40 deg: the spectrum rules out the printed 46.5 deg (at 46.5 deg and the
-      same tension the crank-idler span is 8.5 mm longer and its frequency 7 % lower).  README "Tensioner bench".
+      same tension the crank-idler span is 8.5 mm longer and its frequency 7 % lower).
+      README "Tensioner bench".
     """
     assert main(["fit", str(TENSIONER), "--out", str(tmp_path)]) == 0
     out = json.loads((tmp_path / "fit.json").read_text())["modal"]
@@ -164,13 +165,13 @@ def test_tensioner_bench_fit_locates_the_arm(ref, tmp_path):
         assert abs(m["model_after_hz"] / m["measured_hz"] - 1) < 0.01, m
     assert max(abs(m["model_before_hz"] / m["measured_hz"] - 1) for m in out["modes"]) > 0.15
     values = {k: v["value"] for k, v in out["parameters"].items()}
-    sc = parameters.set_values(load_scene(REPO / "scenes" / "tensioner_bench_stage2.toml"), values)
-    st = statics.analyse_statics(sc)
+    printed_scene = load_scene(REPO / "scenes" / "tensioner_bench_stage2.toml")
+    st = statics.analyse_statics(parameters.set_values(printed_scene, values))
     T, theta = float(st.span_tensions_N[0]), st.tensioner_angle_deg
     stage2 = ref["tensioner_bench_stage2"]["static"]
     F_meas = np.linalg.norm(stage2["alternator_bearing_experiment"])
     F_model = float(np.linalg.norm(st.hub_forces_N["alternator"]))
-    t = load_scene(REPO / "scenes" / "tensioner_bench_stage2.toml").tensioner
+    t = printed_scene.tensioner
     printed = float(t.spring_stiffness) * np.radians(float(t.spring_preload_deg) - theta)
     print(f"\n  fitted: length {values['belt.length']:.5f} m, preload {values['tensioner.spring_preload_deg']:.2f} deg"
           f" -> arm {theta:.2f} deg, T {T:.1f} N, |F_alternator| {F_model:.1f} N (measured {F_meas:.1f}),"

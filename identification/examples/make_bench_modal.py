@@ -24,8 +24,9 @@ REPO = HERE.parents[1]
 REFERENCE = REPO.parent / "shared" / "reference" / "thesis_reference.json"
 
 
-def _mode_line(label: str, f: float) -> str:
-    return f'  {{ label = "{label}", frequency_hz = {f} }},'
+def _mode_line(label: str, f: float, span: str | None = None) -> str:
+    where = f' span = "{span}",' if span else ""
+    return f'  {{ label = "{label}",{where} frequency_hz = {f} }},'
 
 
 def main() -> None:
@@ -83,8 +84,7 @@ def _tensioner(ref) -> None:
         label, _, span = shape.partition(" (")
         if f_exp is None or "transverse" not in label:
             continue
-        span = _SPANS[span.rstrip(")")]
-        lines.append(f'  {{ label = "{label}", span = "{span}", frequency_hz = {f_exp} }},')
+        lines.append(_mode_line(label, f_exp, _SPANS[span.rstrip(")")]))
     lines += ["]", ""]
     (out / "dataset.toml").write_text("\n".join(lines))
     print(f"wrote {out / 'dataset.toml'}")
