@@ -49,7 +49,28 @@ def _single_thread_cpu_pool():
 _single_thread_cpu_pool()
 
 from beltjax.ancf import Section  # noqa: E402
+from beltjax.errors import BeltjaxError  # noqa: E402
 from beltjax.span import SpanResult, analyse_span  # noqa: E402
 
-__all__ = ["Section", "SpanResult", "analyse_span"]
+#: the public API beyond the span: name -> module that holds it (imported on first use)
+_LAZY = {
+    "load_scene": "beltjax.scene",
+    "loads_scene": "beltjax.scene",
+    "parse_scene": "beltjax.scene",
+    "analyse_statics": "beltjax.statics",
+    "analyse_modes": "beltjax.drive_modal",
+    "analyse_campbell": "beltjax.campbell",
+    "simulate": "beltjax.transient",
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'beltjax' has no attribute {name!r}")
+
+
+__all__ = ["BeltjaxError", "Section", "SpanResult", "analyse_span", *_LAZY]
 __version__ = "0.1.0"

@@ -15,8 +15,7 @@ import pathlib
 import sys
 
 
-class InputError(ValueError):
-    """Bad input: reported as one line naming the argument or cause."""
+from beltjax.errors import BeltjaxError, InputError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -531,7 +530,7 @@ def main(argv=None) -> int:
                 raise InputError(f"argument {name}: empty file name")
         _enable_compile_cache()
         return args.func(args)
-    except InputError as exc:
+    except BeltjaxError as exc:
         print(f"beltjax: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -39,6 +39,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from beltjax.errors import BeltjaxError
+
 CW = -1
 CCW = +1
 DIRECTIONS = ("cw", "ccw")
@@ -47,7 +49,7 @@ DIRECTIONS = ("cw", "ccw")
 MIN_WRAP = 1e-4
 
 
-class GeometryError(ValueError):
+class GeometryError(BeltjaxError):
     """A drive layout that has no belt path (one-line message naming the pulleys).
 
     Attributes: ``kind`` ("radius", "overlap", "tangent", "wrap", "crossing",

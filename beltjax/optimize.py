@@ -114,6 +114,7 @@ import numpy as np
 import optax
 
 from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax.errors import BeltjaxError
 from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, loads_scene
 from beltjax.tomltable import describe
 
@@ -140,12 +141,8 @@ _CONSTRAINT_KEYS = {
 }
 
 
-class OptimizeError(ValueError):
+class OptimizeError(BeltjaxError):
     """A bad optimisation file or an impossible start: one line naming the key (``key``)."""
-
-    def __init__(self, message: str, key: str = ""):
-        super().__init__(f"{key}: {message}" if key else message)
-        self.key = key
 
 
 # --------------------------------------------------------------------------- the problem

@@ -23,6 +23,7 @@ from typing import Mapping
 import equinox as eqx
 import jax.numpy as jnp
 
+from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 
 _COMPONENTS = {"x": 0, "y": 1}
@@ -34,11 +35,11 @@ _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_
               "pulley_inertia", "spring_stiffness", "spring_preload_deg", "arm_cm_distance", "damping")
 
 
-class ParameterError(ValueError):
-    """A parameter path that names no scalar of the scene (one line)."""
+class ParameterError(BeltjaxError):
+    """A parameter path that names no scalar of the scene, or a value out of its range (one line)."""
 
     def __init__(self, path: str, message: str):
-        super().__init__(f"{path}: {message}")
+        super().__init__(message, path)
         self.path = path
 
 

@@ -76,6 +76,7 @@ import numpy as np
 
 from beltjax import geometry, tomltable
 from beltjax.ancf import BENDING_MODELS
+from beltjax.errors import BeltjaxError
 from beltjax.tomltable import describe
 
 #: effects a scene may ask for in ``model.effects`` (only listed ones are simulated)
@@ -98,11 +99,11 @@ MAX_ELEMENTS_PER_SPAN = 400
 ARM = "tensioner_arm"  # a [[torque]] on the tensioner's arm (about its pivot)
 
 
-class SceneError(ValueError):
+class SceneError(BeltjaxError):
     """Invalid scene: one-line message starting with the key path (``key`` attribute)."""
 
     def __init__(self, message: str, key: str = "", source: str = ""):
-        super().__init__(" ".join(str(message).split()))
+        super().__init__(message)
         self.key = key
         self.source = source
 

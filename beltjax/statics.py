@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, span
+from beltjax.errors import BeltjaxError
 from beltjax.drive import Installation
 from beltjax.scene import TENSIONER, Scene
 
@@ -52,12 +53,8 @@ MAX_INSTALL_STRAIN = 0.02
 _ARM_GRID = 1440
 
 
-class StaticsError(ValueError):
+class StaticsError(BeltjaxError):
     """A drive that has no admissible static state; one line naming the key or cause."""
-
-    def __init__(self, message: str, key: str = ""):
-        super().__init__(f"{key}: {message}" if key else message)
-        self.key = key
 
 
 # --------------------------------------------------------------------------- installation

@@ -121,6 +121,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.tomltable import describe
 
@@ -164,12 +165,11 @@ _RANDOM_KEYS = ("parameter", "distribution", "mean", "nominal", "std", "low", "h
                 "relative_tolerance", "samples", "seed")
 
 
-class SweepError(ValueError):
+class SweepError(BeltjaxError):
     """A bad sweep file or request: one line starting with the key (``key`` attribute)."""
 
     def __init__(self, key: str, message: str):
-        super().__init__(f"{key}: {message}" if key else message)
-        self.key = key
+        super().__init__(message, key)
 
 
 # --------------------------------------------------------------------------- the sweep file

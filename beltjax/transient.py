@@ -46,6 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, signals, statics
+from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
 
@@ -53,7 +54,7 @@ __all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "d
            "slack_spans", "slack_warning"]
 
 
-class TransientError(ValueError):
+class TransientError(BeltjaxError):
     """A transient that cannot be run or whose solver failed (one-line message)."""
 
 

@@ -8,13 +8,14 @@ from typing import Sequence
 
 import numpy as np
 
+from beltjax.errors import BeltjaxError
 
-class DataError(ValueError):
+
+class DataError(BeltjaxError):
     """Bad identification data: one line naming the key, file or cause."""
 
     def __init__(self, key: str, message: str):
-        super().__init__(f"{key}: {' '.join(str(message).split())}" if key else " ".join(str(message).split()))
-        self.key = key
+        super().__init__(message, key)
 
 
 def read_csv(path: pathlib.Path, columns: Sequence[str], key: str, min_rows: int = 3) -> dict[str, np.ndarray]:
