@@ -1,0 +1,136 @@
+"""The ``beltjax optimize`` command: optimise, check on the scene's mesh, write the outputs."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import sys
+import time
+
+from beltjax.scene import Scene
+from beltjax.optimize.plots import _plot_campbell_band, plot_history
+from beltjax.optimize.problem import load
+from beltjax.optimize.report import (_describe_constraint, _value_text, check, constraint_report, evaluator,
+                                     relevant_modes)
+from beltjax.optimize.scenefile import _verify_scene_text, edit_scene_text
+from beltjax.optimize.solver import OptimizeResult, optimise
+
+
+def _table(result: OptimizeResult, before: dict, after: dict) -> str:
+    lines = [f"{'parameter':<34} {'before':>12} {'after':>12} {'change':>12}  bounds"]
+    for j, p in enumerate(result.paths):
+        at = " (at bound)" if result.x[j] in (result.lower[j], result.upper[j]) else ""
+        lines.append(f"{p:<34} {result.x0[j]:>12.6g} {result.x[j]:>12.6g} {result.x[j] - result.x0[j]:>+12.4g}  "
+                     f"[{result.lower[j]:g}, {result.upper[j]:g}]{at}")
+    lines += ["", f"{'loss term (scene mesh, exact max)':<40} {'before':>12} {'after':>12}"]
+    for k in before["terms"]:
+        lines.append(f"{k:<40} {before['terms'][k]:>12.5g} {after['terms'][k]:>12.5g}")
+    lines.append(f"{'total':<40} {before['loss']:>12.5g} {after['loss']:>12.5g}")
+    if after["constraints"]:
+        lines += ["", f"{'constraint':<46} {'before':>16} {'after':>16}  satisfied (tolerance)"]
+        for b, a in zip(before["constraints"], after["constraints"]):
+            lines.append(f"{_describe_constraint(a):<46} {_value_text(b):>16} {_value_text(a):>16}  "
+                         f"{'yes' if a['satisfied'] else 'NO'} ({a['tolerance']:g} {a['unit']})")
+    for b, a in zip(before["resonance"], after["resonance"]):
+        shown = ", ".join(str(k) for k in a["modes"][:6]) + (", ..." if len(a["modes"]) > 6 else "")
+        lines += ["", f"resonance band {a['rpm'][0]:g}-{a['rpm'][1]:g} rpm, orders "
+                  f"{', '.join(f'{k:g}x' for k in a['orders'])}, margin {a['margin_hz']:g} Hz; "
+                  f"{len(a['modes'])} modes watched ({shown}):"]
+        for tag, r in (("before", b), ("after", a)):
+            cx = "; ".join(f"mode {c['mode']} ({c['label']}) x {c['order']:g}x at {c['rpm']:.0f} rpm, "
+                           f"{c['frequency_hz']:.1f} Hz" for c in r["crossings"]) or "none"
+            lines.append(f"  {tag:<6} crossings in band: {cx}; closest {r['closest_hz']:.2f} Hz "
+                         f"(mode {r['closest_mode']}, {r['closest_label']}, {r['closest_rpm']:.0f} rpm)"
+                         + ("; clear with margin" if r["clear"] else ""))
+    return "\n".join(lines)
+
+
+def _statics_json(st) -> dict:
+    d = st.to_json()
+    keep = ("span_names", "span_tensions_N", "hub_force_magnitudes_N", "wrap_angles_deg", "belt_length_m",
+            "tensioner_angle_deg", "spring_moment_Nm")
+    return {k: d[k] for k in keep if k in d}
+
+
+def run(scene: Scene, spec_path, out, scene_path=None) -> int:
+    """The ``beltjax optimize`` command: optimise, check on the scene's mesh, write the outputs.
+
+    Writes ``optimize.json``, ``optimized_scene.toml`` (the scene file with the variables
+    replaced), ``layout_before.png`` / ``layout_after.png``, ``campbell_before.png`` /
+    ``campbell_after.png`` (with a resonance objective) and ``history.png`` into ``out``;
+    prints the changes, and a progress line to stderr every few steps.  Returns 0.
+    """
+    from beltjax.plotting import plot_layout
+
+    t0 = time.perf_counter()
+    out = pathlib.Path(out)
+    problem = load(spec_path, scene)
+    every = max(1, problem.steps // 15)
+
+    def progress(d):
+        if d["step"] % every == 0 or d["step"] == d["steps"]:
+            print(f"optimize: step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  best {d['best']:.5g}  "
+                  f"learning rate {d['learning_rate']:.3g}  rejected {d['rejected']}", file=sys.stderr, flush=True)
+
+    res = optimise(scene, problem, progress)
+    print("optimize: checking the start and the result on the scene's mesh", file=sys.stderr, flush=True)
+    t_check = time.perf_counter()
+    n_plot = relevant_modes(problem, res.measures0["freqs_hz"], res.measures["freqs_hz"])
+    before = check(scene, problem, evaluator(scene, problem, res.x0, res), n_plot)
+    after = check(res.scene, problem, evaluator(res.scene, problem, res.x, res), n_plot)
+    check_s = time.perf_counter() - t_check
+    changes = dict(zip(res.paths, (float(v) for v in res.x)))
+    title = scene.description or str(scene_path or scene.source)
+    files, note = [], None
+    src = pathlib.Path(scene_path) if scene_path is not None else pathlib.Path(scene.source)
+    if src.is_file():
+        head = (f"# optimised by beltjax optimize ({spec_path}): "
+                + ", ".join(f"{p} {a:.6g} -> {b:.6g}" for p, a, b in zip(res.paths, res.x0, res.x)) + "\n")
+        text = head + edit_scene_text(src.read_text(), scene, changes)
+        _verify_scene_text(text, scene, changes)
+        (out / "optimized_scene.toml").write_text(text)
+        files.append("optimized_scene.toml")
+    else:
+        note = "optimized_scene.toml not written: the scene was not read from a file"
+    for tag, chk, sc in (("before", before, scene), ("after", after, res.scene)):
+        plot_layout(sc, chk["statics"], out / f"layout_{tag}.png")
+        files.append(f"layout_{tag}.png")
+        if chk["campbell"] is not None:
+            _plot_campbell_band(chk["campbell"], out / f"campbell_{tag}.png", f"{title} ({tag} optimisation)", problem)
+            files.append(f"campbell_{tag}.png")
+    plot_history(res, out / "history.png")
+    files.append("history.png")
+    wall = time.perf_counter() - t0
+    data = dict(
+        scene=str(scene_path or scene.source), spec=str(spec_path), description=problem.description,
+        mesh=dict(optimisation_elements_per_span=res.working.model.elements_per_span,
+                  scene_elements_per_span=scene.model.elements_per_span),
+        variables=[dict(parameter=p, before=float(a), after=float(b), change=float(b - a), lower=v.lower,
+                        upper=v.upper, scale=v.scale)
+                   for p, a, b, v in zip(res.paths, res.x0, res.x, problem.variables)],
+        optimisation=dict(loss_before=res.loss0, loss_after=res.loss, terms_before=res.terms0, terms_after=res.terms,
+                          constraints_before=constraint_report(res.measures0, res.working, problem),
+                          constraints_after=constraint_report(res.measures, res.working, problem)),
+        check=dict(loss_before=before["loss"], loss_after=after["loss"], terms_before=before["terms"],
+                   terms_after=after["terms"], constraints_before=before["constraints"],
+                   constraints_after=after["constraints"], resonance_before=before["resonance"],
+                   resonance_after=after["resonance"], statics_before=_statics_json(before["statics"]),
+                   statics_after=_statics_json(after["statics"])),
+        all_constraints_satisfied=all(c["satisfied"] for c in after["constraints"]),
+        steps=res.steps, rejected_steps=res.rejected, converged=res.converged, stop_reason=res.reason,
+        loss_history=res.loss_history, history=res.history,
+        wall_s=wall, optimisation_s=res.wall_s, first_evaluation_s=res.compile_s, check_s=check_s,
+        outputs=files, note=note,
+    )
+    (out / "optimize.json").write_text(json.dumps(data, indent=2))
+    print(f"optimised {title} with {spec_path}")
+    print(f"{res.steps} steps ({res.reason}), {res.rejected} rejected; loss {res.loss0:.5g} -> {res.loss:.5g} "
+          f"({res.working.model.elements_per_span} elements per span, checked with the scene's "
+          f"{scene.model.elements_per_span}); wall {wall:.1f} s: optimisation {res.wall_s:.1f} s (first "
+          f"evaluation with compilation {res.compile_s:.1f} s), check and plots {wall - res.wall_s:.1f} s")
+    print("")
+    print(_table(res, before, after))
+    if note:
+        print(note)
+    print(f"wrote {', '.join(str(out / f) for f in ['optimize.json'] + files)}")
+    return 0

@@ -1,0 +1,44 @@
+"""Plots of an optimisation: Campbell diagrams with the bands shaded, the loss history."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from beltjax.optimize.problem import Problem
+from beltjax.optimize.solver import OptimizeResult
+
+
+def _plot_campbell_band(result, path, title: str, problem: Problem) -> None:
+    """:func:`beltjax.plotting.plot_campbell` with each resonance objective's speed band shaded and
+    its order lines drawn bold inside the band."""
+    from beltjax.plotting import plot_campbell
+
+    bands = [(o.rpm[0], o.rpm[1], tuple(o.orders),
+              f"band {o.rpm[0]:g}-{o.rpm[1]:g} rpm\n"
+              f"orders {', '.join(f'{k:g}x' for k in o.orders)}, margin {o.margin_hz:g} Hz")
+             for o in problem.objectives if o.kind == "resonance_band"]
+    plot_campbell(result, path, title=title, bands=bands)
+
+
+def plot_history(result: OptimizeResult, path) -> None:
+    """Save the loss history (log scale) and the variables' paths (scaled to their bounds) (PNG)."""
+    import matplotlib.pyplot as plt
+
+    steps = [h["step"] for h in result.history]
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    a1.semilogy(steps, np.maximum(result.loss_history, 1e-12), color="tab:blue", lw=1.5)
+    a1.set_ylabel("loss")
+    a1.grid(alpha=0.3, which="both")
+    a1.set_title(f"loss {result.loss0:.4g} -> {result.loss:.4g}; {result.steps} steps, "
+                 f"{result.rejected} rejected; {result.reason}", fontsize=9)
+    X = np.array([h["x"] for h in result.history])
+    for j, p in enumerate(result.paths):
+        a2.plot(steps, (X[:, j] - result.lower[j]) / (result.upper[j] - result.lower[j]), lw=1.4, label=p)
+    a2.set_ylim(-0.05, 1.05)
+    a2.set_ylabel("(x - lower) / (upper - lower)")
+    a2.set_xlabel("step")
+    a2.grid(alpha=0.3)
+    a2.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,292 @@
+"""The optimisation file: its dataclasses (:class:`Problem` and parts) and their parsing against a scene."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+
+import numpy as np
+
+from beltjax import drive, parameters, tomltable
+from beltjax.errors import BeltjaxError
+from beltjax.scene import MAX_ELEMENTS_PER_SPAN, Scene
+from beltjax.tomltable import describe
+
+#: temperature (Hz) of the log-sum-exp maximum over the sampled speeds
+SOFT_HZ = 0.5
+OBJECTIVES = ("resonance_band", "hub_load")
+CONSTRAINTS = ("min_wrap_deg", "static_tension", "arm_angle_deg", "no_overlap")
+#: penalty unit and default tolerance of each constraint kind (its own units)
+_UNIT = {"min_wrap_deg": 1.0, "static_tension": 10.0, "arm_angle_deg": 1.0, "no_overlap": 1e-3}
+_TOLERANCE = {"min_wrap_deg": 0.5, "static_tension": 2.0, "arm_angle_deg": 0.2, "no_overlap": 2e-4}
+_UNIT_NAME = {"min_wrap_deg": "deg", "static_tension": "N", "arm_angle_deg": "deg", "no_overlap": "m"}
+_TOP_KEYS = ("steps", "learning_rate", "tolerance", "patience", "elements_per_span", "description",
+             "variable", "objective", "constraint")
+_VARIABLE_KEYS = ("parameter", "lower", "upper", "scale")
+_OBJECTIVE_KEYS = {
+    "resonance_band": ("kind", "orders", "rpm", "modes", "margin_hz", "speeds", "weight"),
+    "hub_load": ("kind", "pulley", "weight"),
+}
+_CONSTRAINT_KEYS = {
+    "min_wrap_deg": ("kind", "value", "pulley", "weight", "tolerance"),
+    "static_tension": ("kind", "min", "max", "span", "weight", "tolerance"),
+    "arm_angle_deg": ("kind", "min", "max", "weight", "tolerance"),
+    "no_overlap": ("kind", "clearance", "weight", "tolerance"),
+}
+
+
+class OptimizeError(BeltjaxError):
+    """A bad optimisation file or an impossible start: one line naming the key (``key``)."""
+
+
+# --------------------------------------------------------------------------- the problem
+
+
+@dataclass(frozen=True)
+class Variable:
+    """A parameter to move: path (file units), bounds lower < upper, scale (typical change)."""
+
+    path: str
+    lower: float
+    upper: float
+    scale: float
+
+
+@dataclass(frozen=True)
+class Objective:
+    """One objective term.  resonance_band: orders, rpm = (lo, hi) of the drive pulley (rpm),
+    modes ("span", "all" or a number of lowest flexible modes), margin_hz (Hz), speeds
+    (samples in the band); hub_load: pulley (a route entry).  weight >= 0."""
+
+    kind: str
+    weight: float = 1.0
+    orders: tuple[float, ...] = ()
+    rpm: tuple[float, float] = (0.0, 0.0)
+    modes: str | int = "span"
+    margin_hz: float = 2.0
+    speeds: int = 9
+    pulley: str = ""
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """One penalised constraint: kind, bounds lower/upper (its units; None: none), pulley or
+    span it is restricted to (None: all), penalty weight and report tolerance."""
+
+    kind: str
+    lower: float | None
+    upper: float | None
+    weight: float
+    tolerance: float
+    where: str | None = None
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A parsed optimisation file (see the module docstring); hashable, so compiled
+    functions are shared between problems that are equal."""
+
+    variables: tuple[Variable, ...]
+    objectives: tuple[Objective, ...]
+    constraints: tuple[Constraint, ...] = ()
+    steps: int = 150
+    learning_rate: float = 0.01
+    tolerance: float = 1e-4
+    patience: int = 30
+    elements_per_span: int | None = None
+    description: str = ""
+
+    @property
+    def paths(self) -> list[str]:
+        """Parameter paths of the variables, in order."""
+        return [v.path for v in self.variables]
+
+    @property
+    def scales(self) -> np.ndarray:
+        """Scale of each variable (file units)."""
+        return np.array([v.scale for v in self.variables])
+
+
+def _raise(path: str, msg: str):
+    raise OptimizeError(msg, path)
+
+
+#: the optimisation file's reader: OptimizeError, its own wording of a few messages
+_READ = tomltable.Reader(_raise, tomltable.Style(unknown_where=False, finite=True, choose=True, top="file"))
+
+
+def _parse_variable(d, i: int, scene: Scene) -> Variable:
+    key = f"variable[{i}]"
+    t = _READ.table(d, key, _VARIABLE_KEYS)
+    path = t.string("parameter", required=True)
+    try:
+        parameters.check(scene, path)
+    except parameters.ParameterError as exc:
+        raise OptimizeError(str(exc), f"{key}.parameter") from None
+    lo = t.number("lower", required=True)
+    hi = t.number("upper", required=True)
+    if not lo < hi:
+        t.fail("upper", f"must be > lower = {lo!r}, got {hi!r}")
+    scale = t.number("scale", required=False, default=hi - lo, positive=True)
+    x0 = float(parameters.get_value(scene, path))
+    if not math.isfinite(x0):
+        t.fail("parameter", f"{path} is not given in the scene (it is solved for); "
+               "optimise the belt key the scene gives")
+    if not lo <= x0 <= hi:
+        t.fail("parameter", f"the scene's value {x0:.6g} of {path} lies outside [lower, upper] = [{lo:g}, {hi:g}]")
+    return Variable(path, lo, hi, scale)
+
+
+def _route_entry(t: tomltable.Table, k: str, scene: Scene, required: bool) -> str | None:
+    name = t.string(k, required=required)
+    if name is not None and name not in scene.route.order:
+        t.fail(k, f"unknown pulley {name!r}; route entries: {', '.join(scene.route.order)}")
+    return name
+
+
+def _kind(d, key: str, choices) -> str:
+    """The ``kind`` of an objective or constraint table (checked before its other keys)."""
+    if not isinstance(d, dict):
+        raise OptimizeError(f"expected a table, got {describe(d)}", key)
+    only = {k: d[k] for k in ("kind",) if k in d}
+    return _READ.table(only, key, ("kind",)).string("kind", required=True, choices=choices)
+
+
+def _parse_objective(d, i: int, scene: Scene) -> Objective:
+    key = f"objective[{i}]"
+    kind = _kind(d, key, OBJECTIVES)
+    t = _READ.table(d, key, _OBJECTIVE_KEYS[kind])
+    weight = t.number("weight", required=False, default=1.0, nonnegative=True)
+    if kind == "hub_load":
+        return Objective(kind, weight, pulley=_route_entry(t, "pulley", scene, True))
+    orders = d.get("orders")
+    if (not isinstance(orders, list) or not orders
+            or any(isinstance(k, bool) or not isinstance(k, (int, float)) or not 0 < k < math.inf for k in orders)):
+        got = (describe(orders) if not isinstance(orders, list) else repr(orders)) if orders is not None else "nothing"
+        t.fail("orders", f"expected a non-empty array of positive finite numbers, got {got}")
+    rpm = d.get("rpm")
+    if (not isinstance(rpm, list) or len(rpm) != 2
+            or any(isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) for r in rpm)):
+        got = describe(rpm) if rpm is not None else "nothing"
+        t.fail("rpm", f"expected [lower, upper] speeds of the drive pulley (rpm), got {got}")
+    if not 0 <= rpm[0] < rpm[1]:
+        t.fail("rpm", f"need 0 <= lower < upper, got {rpm!r}")
+    modes = d.get("modes", "span")
+    if isinstance(modes, bool) or not (modes in ("span", "all") or (isinstance(modes, int) and modes >= 1)):
+        t.fail("modes", f"expected \"span\", \"all\" or a number of lowest modes >= 1, got {describe(modes)}")
+    return Objective(
+        kind, weight, orders=tuple(float(k) for k in orders), rpm=(float(rpm[0]), float(rpm[1])), modes=modes,
+        margin_hz=t.number("margin_hz", required=False, default=2.0, nonnegative=True),
+        speeds=t.integer("speeds", required=False, default=9, minimum=2, maximum=64),
+    )
+
+
+def _parse_constraint(d, i: int, scene: Scene) -> Constraint:
+    key = f"constraint[{i}]"
+    kind = _kind(d, key, CONSTRAINTS)
+    t = _READ.table(d, key, _CONSTRAINT_KEYS[kind])
+    weight = t.number("weight", required=False, default=100.0, nonnegative=True)
+    tol = t.number("tolerance", required=False, default=_TOLERANCE[kind], nonnegative=True)
+    if kind == "min_wrap_deg":
+        value = t.number("value", required=True)
+        if not 0 < value < 360:
+            t.fail("value", f"must lie in (0, 360) deg, got {value!r}")
+        return Constraint(kind, value, None, weight, tol, _route_entry(t, "pulley", scene, False))
+    if kind == "no_overlap":
+        return Constraint(kind, t.number("clearance", required=False, default=0.0, nonnegative=True), None, weight, tol)
+    if kind == "arm_angle_deg" and scene.tensioner is None:
+        t.fail("kind", "the scene has no tensioner")
+    lo, hi = t.number("min", required=False), t.number("max", required=False)
+    if lo is None and hi is None:
+        t.fail("min", "give min, max or both")
+    if lo is not None and hi is not None and not lo < hi:
+        t.fail("max", f"must be > min = {lo!r}, got {hi!r}")
+    span = None
+    if kind == "static_tension":
+        span = t.string("span", required=False)
+        if span is not None and span not in scene.route.span_names:
+            t.fail("span", f"unknown span {span!r}; spans: {', '.join(scene.route.span_names)}")
+    return Constraint(kind, lo, hi, weight, tol, span)
+
+
+def parse(spec: dict, scene: Scene) -> Problem:
+    """Validate an optimisation file given as a dict (parsed TOML) against ``scene``.
+
+    Raises :class:`OptimizeError` (one line naming the key) for unknown keys or kinds, bad
+    bounds, a parameter path the scene lacks, a start outside the bounds, no variables or
+    no objectives, steps < 1 and the like.
+    """
+    t = _READ.table(spec, "", _TOP_KEYS)
+    variables = tuple(_parse_variable(d, i, scene) for i, d in enumerate(t.tables("variable")))
+    if not variables:
+        raise OptimizeError("at least one [[variable]] is required", "variable")
+    seen = [v.path for v in variables]
+    for i, p in enumerate(seen):
+        if p in seen[:i]:
+            raise OptimizeError(f"{p} is listed twice", f"variable[{i}].parameter")
+    objectives = tuple(_parse_objective(d, i, scene) for i, d in enumerate(t.tables("objective")))
+    if not objectives:
+        raise OptimizeError("at least one [[objective]] is required", "objective")
+    constraints = tuple(_parse_constraint(d, i, scene) for i, d in enumerate(t.tables("constraint")))
+    return Problem(
+        variables=variables,
+        objectives=objectives,
+        constraints=constraints,
+        steps=t.integer("steps", required=False, default=150, minimum=1),
+        learning_rate=t.number("learning_rate", required=False, default=0.01, positive=True),
+        tolerance=t.number("tolerance", required=False, default=1e-4, nonnegative=True),
+        patience=t.integer("patience", required=False, default=30, minimum=1),
+        elements_per_span=t.integer("elements_per_span", required=False, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN),
+        description=t.string("description", required=False, default=""),
+    )
+
+
+def load(path, scene: Scene) -> Problem:
+    """Read and validate an optimisation file (TOML); :class:`OptimizeError` names the file or key."""
+    p = str(path)
+    try:
+        with open(p, "rb") as f:
+            spec = tomllib.load(f)
+    except FileNotFoundError:
+        raise OptimizeError("optimisation file not found", p) from None
+    except IsADirectoryError:
+        raise OptimizeError("is a directory, not an optimisation file", p) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise OptimizeError(f"malformed TOML: {exc}", p) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise OptimizeError(f"cannot read: {exc}", p) from None
+    return parse(spec, scene)
+
+
+def working_scene(scene: Scene, problem: Problem) -> Scene:
+    """The scene the optimisation runs on: canonical, with ``problem.elements_per_span`` if set."""
+    sc = drive.canonical(scene)
+    if problem.elements_per_span is not None and problem.elements_per_span != sc.model.elements_per_span:
+        sc = dataclasses.replace(sc, model=dataclasses.replace(sc.model, elements_per_span=problem.elements_per_span))
+    return sc
+
+
+def band_rpm(objective: Objective) -> np.ndarray:
+    """Sampled speeds (rpm) of a resonance objective's band, ends included."""
+    return np.linspace(objective.rpm[0], objective.rpm[1], objective.speeds)
+
+
+def _bands(problem: Problem) -> list[Objective]:
+    return [o for o in problem.objectives if o.kind == "resonance_band"]
+
+
+def sample_rpm(problem: Problem) -> np.ndarray:
+    """Every resonance objective's sampled speeds (rpm), concatenated in objective order."""
+    parts = [band_rpm(o) for o in _bands(problem)]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _band_starts(problem: Problem) -> list[int]:
+    """Index of each resonance objective's first sampled speed in :func:`sample_rpm`."""
+    return [int(k) for k in np.cumsum([0] + [o.speeds for o in _bands(problem)])[:-1]]
+
+
+def _pairs(n: int) -> list[tuple[int, int]]:
+    return [(i, j) for i in range(n) for j in range(i + 1, n)]
