@@ -353,6 +353,12 @@ CASES = [
                                           'pulley = "alternator"\n\n[[constraint]]\nkind = "arm_angle_deg"\n'
                                           'min = 30\n')],
          "constraint[0].kind: the scene has no tensioner"),
+    case("optimize-starts-zero", "`optimize`: `starts = 0`", "no start",
+         lambda d: ["optimize", TB, write(d, "opt.toml", "starts = 0\n" + OPTIMIZE)], "starts: must be >= 1, got 0"),
+    case("optimize-tolerance-hz-negative", "`optimize`: `tolerance_hz = -0.1`", "negative resonance tolerance",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("margin_hz = 2.0", "margin_hz = 2.0\n"
+                                                                                           "tolerance_hz = -0.1")))],
+         "objective[0].tolerance_hz: must be >= 0"),
 ]
 
 

@@ -3,13 +3,17 @@ constraints hold, with gradients through the statics and the (gyroscopic) modal 
 
 Optimisation file (TOML)
 ------------------------
-Top level (all optional): ``steps`` (int >= 1, default 150: most optimiser steps),
-``learning_rate`` (> 0, default 0.01: Adam's step in scaled variables, decayed along a cosine
-to a tenth of it over ``steps``), ``tolerance`` (>= 0, default 1e-4) and ``patience`` (int >= 1,
-default 30): stop when the best loss has not fallen by more than ``tolerance`` (relative) for
-``patience`` steps, or when it reaches 0;
-``elements_per_span`` (int, 1 to 400): a coarser mesh for the optimisation (the result is checked
-with the scene's own mesh at the end); ``description`` (string).  Then tables::
+Top level (all optional): ``steps`` (int >= 1, default 150: most optimiser steps of one
+start), ``learning_rate`` (> 0, default 0.01: Adam's step in scaled variables, decayed along a
+cosine to a tenth of it over ``steps``), ``tolerance`` (>= 0, default 1e-4), ``patience``
+(int >= 1, default 30) and ``min_steps`` (int >= 0, default 40): a start stops when its
+smoothed loss has made no new low (by more than ``tolerance``, relative) against its previous
+10 values for ``patience`` steps, never before ``min_steps`` steps
+(:mod:`beltjax.optimize.stop`), or when the loss reaches 0; ``starts`` (int 1 to 16,
+default 3): while no step has met the goal, the run tries further starts
+(:mod:`beltjax.optimize.solver`); ``elements_per_span`` (int, 1 to 400): a coarser mesh for
+the optimisation (the result is checked with the scene's own mesh at the end);
+``description`` (string).  Then tables::
 
     [[variable]]                         # one per parameter to move; every other parameter is fixed
     parameter = "tensioner.pivot.x"      # a beltjax.parameters path (file units)
@@ -21,10 +25,11 @@ with the scene's own mesh at the end); ``description`` (string).  Then tables::
     kind = "resonance_band"              # keep modes out of excitation-order lines over a speed band
     orders = [2.0]                       # multiples of the drive pulley's speed
     rpm = [1700, 2300]                   # the drive pulley's speed band (rpm), lower < upper
-    modes = "span"                       # "span" (the modes labelled transverse at the band's lowest
-                                         # speed, at the start), "all" (every flexible mode) or N
-                                         # (the N lowest flexible modes)
+    modes = "span"                       # "span" (the transverse span modes, chosen at every
+                                         # sampled speed and step by their shapes), "all" (every
+                                         # flexible mode) or N (the N lowest flexible modes)
     margin_hz = 2.0                      # wanted distance from the order line (Hz, default 2)
+    tolerance_hz = 0.05                  # shift still needed that counts as clear (Hz, default 0.05)
     speeds = 9                           # speeds sampled in the band (2-64, default 9)
     weight = 1.0                         # default 1; the term is weight * sum(need_hz^2)
 
@@ -62,9 +67,17 @@ is ``need = min(max_s(g + mu), max_s(mu - g))^+``: the smaller of the moves down
 would clear it (the max over speeds is a log-sum-exp with a 0.5 Hz temperature, which errs on
 the safe side).  ``need`` is 0 for a mode that never comes near the line, so "all" is a sum of
 one function over every eigenvalue: repeated eigenvalues (equal spans) enter symmetrically and
-the gradient stays exact (DESIGN.md, "Measured facts").  Frequencies are sorted per speed (no
-mode tracking); "span" fixes the positions of the transverse modes among the sorted ones at
-the start of the optimisation (the final report labels them again).
+the gradient stays exact (DESIGN.md, "Measured facts").  Frequencies are sorted per speed.
+With "span" each sorted mode counts only at the speeds where it is a transverse span mode: its
+weight there (1 for a span mode, falling to 0 for a mode whose transverse share trails by 0.1;
+from its kinetic-energy shares, computed inside the compiled loss from its eigenvectors and held
+out of the gradient: :mod:`beltjax.optimize.modes`) weights that speed in the log-sum-exp
+(:func:`band_need`).  So when a span mode passes a rotational one
+inside the band (their sorted places swap), the term follows the span mode across the swap,
+at every step.  Modes of two equal spans (a repeated pair) are both span modes with weight 1,
+so the pair enters symmetrically and the gradient stays exact.  The report and the goal use
+the exact max over the speeds where a mode's weight is 1 (where its label says "transverse");
+every such mode counts fully in the loss too, so a zero resonance term means a clear band.
 
 Not provided: a "tension_fluctuation" or "arm_motion" objective.  Both are responses to the
 crank's speed fluctuation and the accessories' torque pulsation, so they need the damped forced
@@ -80,25 +93,40 @@ problem at every sampled speed.  The speeds go through ``lax.map``: measured as 
 ``vmap`` on the 2-core CPU (0.45 against 0.48 s per value and gradient of the 8-element bench
 at 9 speeds), each speed keeps its own Newton loop, and with ``vmap`` the gradient of the
 batched loop hung XLA's CPU runtime before beltjax pinned its CPU thread pool at import.  The
-mode selection ("span") is an argument of the compiled function (0/1 weights per sorted mode),
-so labelling the modes does not recompile, and the same compiled function gives the
-before/after Campbell diagrams (its speeds are an argument too).  A step to a layout that
-cannot be built (the belt cannot be fitted, no equilibrium, unstable, a non-finite loss or
-gradient) is rejected and the learning rate halved; the result is the best feasible layout
-met, never NaN.
+same compiled function gives the before/after Campbell diagrams (its speeds are an argument).
+A step to a layout that cannot be built or run (the belt cannot be fitted, no equilibrium,
+unstable, a span force tension - rhoA c^2 lam at or below zero: past the critical speed, a
+non-finite loss or gradient) is rejected and the learning rate halved.
+
+Stopping, starts and the result (:mod:`~beltjax.optimize.stop`, :mod:`~beltjax.optimize.solver`,
+:mod:`~beltjax.optimize.goal`): a start ends when its smoothed loss has stalled (an early dip
+cannot end it), after ``steps`` steps, or at a zero loss; the run then stops if some step met
+the goal (built and run, no overlapping pulleys, every constraint within its tolerance, every
+band clear), else tries the next start (deterministic Halton points of the bounds).  The result
+is the best step that meets the goal, else the best feasible one; an overlapping layout or one
+that cannot be built is never the result.  ``beltjax optimize`` checks it on the scene's own
+mesh and exits with status 3 (GOAL_NOT_MET) when the goal is not met there, saying what is
+missing and by how much (the summary, and ``goal_met`` / ``unmet`` in optimize.json).
 
 API: :func:`parse` / :func:`load` (a spec -> :class:`Problem`), :func:`measures`,
 :func:`mode_masks`, :func:`loss_terms` and :func:`loss` (pure JAX), :func:`optimise` (->
 :class:`OptimizeResult`), :func:`check` (a layout on the scene's own mesh: statics, Campbell
-diagram, constraint and resonance reports) and :func:`run` (the ``beltjax optimize`` command:
-optimize.json, optimized_scene.toml, before/after layouts and Campbell diagrams, history).
+diagram, constraint and resonance reports), :func:`unmet` (what a checked layout misses of the
+goal) and :func:`run` (the ``beltjax optimize`` command: optimize.json, optimized_scene.toml,
+before/after layouts and Campbell diagrams, history).
+
+Modules: problem (the file), modes (frequencies and span weights in JAX), loss (the pure loss),
+stop (the stop rule), goal (a layout's verdict, the result's rank), solver (the optimiser),
+report (reports, the check), scenefile (the optimised scene file), plots, command.
 """
 
 __all__ = [
-    "CONSTRAINTS", "OBJECTIVES", "SOFT_HZ", "Constraint", "Objective", "OptimizeError", "OptimizeResult", "Problem",
-    "Variable", "band_need", "band_rpm", "check", "constraint_report", "edit_scene_text", "evaluator", "load", "loss",
-    "loss_terms", "measures", "mode_labels", "mode_masks", "optimise", "parse", "plot_history", "relevant_modes",
-    "resonance_report", "run", "sample_rpm", "term_names", "terms_from_measures", "working_scene",
+    "CONSTRAINTS", "GOAL_NOT_MET", "OBJECTIVES", "SOFT_HZ", "Constraint", "Objective", "OptimizeError",
+    "OptimizeResult", "Problem", "StopRule", "Variable", "band_need", "band_rpm", "band_weights", "check",
+    "constraint_report", "edit_scene_text", "evaluator", "halton", "layout_status", "load", "loss", "loss_terms",
+    "measures", "mode_labels", "mode_masks", "optimise", "parse", "plot_history", "problem_masks", "rank",
+    "relevant_modes", "resonance_report", "run", "sample_rpm", "stall_step", "term_names", "terms_from_measures",
+    "unmet", "working_scene",
 ]
 
 from beltjax.optimize.problem import (  # noqa: F401
@@ -106,13 +134,16 @@ from beltjax.optimize.problem import (  # noqa: F401
     _parse_constraint, _parse_objective, _parse_variable, band_rpm, load, parse, sample_rpm, working_scene,
 )
 from beltjax.optimize.loss import (  # noqa: F401
-    _compiled, _labels_and_masks, _loss_key, _measures_jit, band_need, loss, loss_terms, measures, mode_labels,
-    mode_masks, term_names, terms_from_measures,
+    _compiled, _loss_key, _measures_jit, band_need, band_weights, loss, loss_terms, measures, mode_masks,
+    problem_masks, term_names, terms_from_measures,
 )
-from beltjax.optimize.solver import OptimizeResult, optimise  # noqa: F401
+from beltjax.optimize.stop import StopRule, stall_step  # noqa: F401
+from beltjax.optimize.goal import layout_status, rank  # noqa: F401
+from beltjax.optimize.solver import OptimizeResult, halton, optimise  # noqa: F401
 from beltjax.optimize.report import (  # noqa: F401
-    _describe_constraint, _value_text, check, constraint_report, evaluator, relevant_modes, resonance_report,
+    _describe_constraint, _value_text, check, constraint_report, evaluator, mode_labels, relevant_modes,
+    resonance_report, unmet,
 )
 from beltjax.optimize.scenefile import _verify_scene_text, edit_scene_text  # noqa: F401
 from beltjax.optimize.plots import plot_history  # noqa: F401
-from beltjax.optimize.command import run  # noqa: F401
+from beltjax.optimize.command import GOAL_NOT_MET, run  # noqa: F401

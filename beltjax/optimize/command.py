@@ -11,9 +11,12 @@ from beltjax.scene import Scene
 from beltjax.optimize.plots import _plot_campbell_band, plot_history
 from beltjax.optimize.problem import load
 from beltjax.optimize.report import (_describe_constraint, _value_text, check, constraint_report, evaluator,
-                                     relevant_modes)
+                                     relevant_modes, unmet)
 from beltjax.optimize.scenefile import _verify_scene_text, edit_scene_text
 from beltjax.optimize.solver import OptimizeResult, optimise
+
+#: exit status of ``beltjax optimize`` when the run ended without meeting its goal (2: bad input)
+GOAL_NOT_MET = 3
 
 
 def _table(result: OptimizeResult, before: dict, after: dict) -> str:
@@ -39,9 +42,11 @@ def _table(result: OptimizeResult, before: dict, after: dict) -> str:
         for tag, r in (("before", b), ("after", a)):
             cx = "; ".join(f"mode {c['mode']} ({c['label']}) x {c['order']:g}x at {c['rpm']:.0f} rpm, "
                            f"{c['frequency_hz']:.1f} Hz" for c in r["crossings"]) or "none"
-            lines.append(f"  {tag:<6} crossings in band: {cx}; closest {r['closest_hz']:.2f} Hz "
-                         f"(mode {r['closest_mode']}, {r['closest_label']}, {r['closest_rpm']:.0f} rpm)"
-                         + ("; clear with margin" if r["clear"] else ""))
+            near = ("no watched mode" if r["closest_hz"] is None else f"closest {r['closest_hz']:.2f} Hz (mode "
+                    f"{r['closest_mode']}, {r['closest_label']}, {r['closest_rpm']:.0f} rpm)")
+            lines.append(f"  {tag:<6} crossings in band: {cx}; {near}"
+                         + (f"; clear with margin (within {r['tolerance_hz']:g} Hz)" if r["clear"]
+                            else f"; needs {r['max_need_hz']:.3g} Hz more"))
     return "\n".join(lines)
 
 
@@ -58,7 +63,11 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     Writes ``optimize.json``, ``optimized_scene.toml`` (the scene file with the variables
     replaced), ``layout_before.png`` / ``layout_after.png``, ``campbell_before.png`` /
     ``campbell_after.png`` (with a resonance objective) and ``history.png`` into ``out``;
-    prints the changes, and a progress line to stderr every few steps.  Returns 0.
+    prints the changes and whether the goal is met (on the scene's own mesh: every resonance
+    band clear with its margin, every constraint within its tolerance, no overlapping pulleys),
+    and a progress line to stderr every few steps.  Returns 0 when the goal is met, else
+    GOAL_NOT_MET (3), with optimize.json's ``goal_met`` false and ``unmet`` listing what is
+    missing and by how much.
     """
     from beltjax.plotting import plot_layout
 
@@ -69,7 +78,8 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
 
     def progress(d):
         if d["step"] % every == 0 or d["step"] == d["steps"]:
-            print(f"optimize: step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  best {d['best']:.5g}  "
+            start = f"start {d['start']}/{d['starts']} " if d["starts"] > 1 else ""
+            print(f"optimize: {start}step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  best {d['best']:.5g}  "
                   f"learning rate {d['learning_rate']:.3g}  rejected {d['rejected']}", file=sys.stderr, flush=True)
 
     res = optimise(scene, problem, progress)
@@ -79,6 +89,7 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     before = check(scene, problem, evaluator(scene, problem, res.x0, res), n_plot)
     after = check(res.scene, problem, evaluator(res.scene, problem, res.x, res), n_plot)
     check_s = time.perf_counter() - t_check
+    missing = unmet(after)
     changes = dict(zip(res.paths, (float(v) for v in res.x)))
     title = scene.description or str(scene_path or scene.source)
     files, note = [], None
@@ -117,6 +128,9 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
                    resonance_after=after["resonance"], statics_before=_statics_json(before["statics"]),
                    statics_after=_statics_json(after["statics"])),
         all_constraints_satisfied=all(c["satisfied"] for c in after["constraints"]),
+        goal_met=not missing, unmet=missing, starts=res.starts,
+        result=dict(history_index=res.best_index, start=res.history[res.best_index]["start"],
+                    step=res.history[res.best_index]["step"]),
         steps=res.steps, rejected_steps=res.rejected, converged=res.converged, stop_reason=res.reason,
         loss_history=res.loss_history, history=res.history,
         wall_s=wall, optimisation_s=res.wall_s, first_evaluation_s=res.compile_s, check_s=check_s,
@@ -124,7 +138,11 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     )
     (out / "optimize.json").write_text(json.dumps(data, indent=2))
     print(f"optimised {title} with {spec_path}")
-    print(f"{res.steps} steps ({res.reason}), {res.rejected} rejected; loss {res.loss0:.5g} -> {res.loss:.5g} "
+    tried = f"{len(res.starts)} starts, " if len(res.starts) > 1 else ""
+    best = res.history[res.best_index]
+    print(f"{tried}{res.steps} steps (last start: {res.reason}), {res.rejected} rejected; result: step "
+          f"{best['step']}" + (f" (start {best['start'] + 1})" if len(res.starts) > 1 else "")
+          + f"; loss {res.loss0:.5g} -> {res.loss:.5g} "
           f"({res.working.model.elements_per_span} elements per span, checked with the scene's "
           f"{scene.model.elements_per_span}); wall {wall:.1f} s: optimisation {res.wall_s:.1f} s (first "
           f"evaluation with compilation {res.compile_s:.1f} s), check and plots {wall - res.wall_s:.1f} s")
@@ -132,5 +150,17 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     print(_table(res, before, after))
     if note:
         print(note)
+    print("")
+    if not missing:
+        print("goal met: every resonance band clear with its margin and every constraint within its tolerance "
+              "(scene's mesh)")
+    else:
+        print(f"GOAL NOT MET (exit status {GOAL_NOT_MET}):")
+        for u in missing:
+            print(f"  {u['text']}")
     print(f"wrote {', '.join(str(out / f) for f in ['optimize.json'] + files)}")
+    if missing:
+        print(f"optimize: goal not met: {missing[0]['text']}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1
+                                                                 else ""), file=sys.stderr, flush=True)
+        return GOAL_NOT_MET
     return 0

@@ -11,8 +11,17 @@ import numpy as np
 
 from beltjax import drive, drive_modal, parameters, statics
 from beltjax.scene import Scene
-from beltjax.optimize.problem import (_UNIT, Constraint, OptimizeError, Problem, SOFT_HZ, _band_starts, _bands, _pairs,
-                                      sample_rpm)
+from beltjax.optimize import modes
+from beltjax.optimize.problem import _UNIT, SOFT_HZ, Constraint, Problem, _band_starts, _bands, _pairs, sample_rpm
+
+
+#: weight at which a mode is watched in the exact max (the goal and the reports): 1, the
+#: selection's full weight (a span mode by its label); the smooth loss also counts smaller weights
+WATCHED = 1.0
+
+
+def _watches_span(problem: Problem) -> bool:
+    return any(o.modes == "span" for o in _bands(problem))
 
 
 def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
@@ -22,31 +31,46 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     default :func:`sample_rpm`).  Static state at the scene's own speed: qi, q, inst, wrap_deg
     (n,), tensions_N (n,), span_lengths_m (n,), hub_N (n, 2), arm_deg (), gaps_m (pairs,)
     rim-to-rim distances of every two route entries; at each speed of ``rpm``: qi_speeds (S,
-    n_i), freqs_hz (S, n_i) sorted, good (S,) (equilibrium converged and stable); feasible:
-    belt fitted, every equilibrium converged and stable, spans taut, everything finite.
+    n_i), freqs_hz (S, n_i) sorted, span_weights (S, n_i) (each sorted mode's weight as a span
+    mode there, :mod:`beltjax.optimize.modes`; 1 when no objective watches "span"), good (S,)
+    (equilibrium converged and stable); span_force_N (S + 1, n): the span force on the pulleys,
+    tension - rhoA c^2 lam (c the transport speed, lam the stretch), at the scene's own speed
+    and each speed of ``rpm``; feasible: belt fitted, every equilibrium converged and stable,
+    every span force positive (no span past its critical speed), everything finite.
     """
     rpm = jnp.asarray(sample_rpm(problem) if rpm is None else rpm, dtype=jnp.float64)
     sc = parameters.set_values(scene, dict(zip(problem.paths, x)))
     inst = statics.install(sc)
     nr = drive_modal.n_rigid_modes(sc)
     gyro = sc.model.has("transport")
+    span = _watches_span(problem)
+    v_rigid = drive_modal.rigid_mode(sc, inst)
 
     def at(v):
         qv, _, iv = statics.equilibrium(sc, inst, speed=v)
+        # the span force on the pulleys (as in beltjax.drive.hub_forces: the tension less the
+        # momentum flux); at or below zero the span is at or past its critical speed
+        tension = drive.span_tensions(drive.full_coordinates(qv, sc, inst), sc, inst)
+        force = tension - sc.belt.rhoA * drive.transport_speed(sc, inst, v) ** 2 * inst.stretch
         if rpm.shape[0] == 0:
-            return qv, jnp.zeros(0), iv[0] > 0.5
+            return qv, jnp.zeros(0), jnp.zeros(0), iv[0] > 0.5, force
         M, G, K = drive_modal.linearise(qv, sc, inst, v)
-        stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyro, drive_modal.rigid_mode(sc, inst))
-        return qv, f, stable & (iv[0] > 0.5)
+        if span:
+            J = jax.jacfwd(lambda y: drive.full_coordinates(y, sc, inst))(qv)
+            stable, f, w = modes.frequencies_and_span_weights(M, G, K, J, nr, gyro, v_rigid, sc, inst)
+        else:
+            stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyro, v_rigid)
+            w = jnp.ones_like(f)
+        return qv, f, w, stable & (iv[0] > 0.5), force
 
     # the static state (the scene's own speed) and every sampled speed through one equilibrium
     # solver in the compiled function (a second copy of the Newton loop and its implicit
     # derivative cost ~20 % more compile time); lax.map: see the module docstring
     v0 = drive.belt_speed(sc)
     speeds = jnp.concatenate([jnp.reshape(v0, (1,)), drive.belt_speed(sc, rpm)])
-    qs, freqs, good = jax.lax.map(at, speeds)
+    qs, freqs, weights, good, force = jax.lax.map(at, speeds)
     if rpm.shape[0] == 0:
-        freqs = jnp.zeros((1, drive.n_independent(sc)))
+        freqs = weights = jnp.zeros((1, drive.n_independent(sc)))
     qi = qs[0]
     q = drive.full_coordinates(qi, sc, inst)
     _, theta = drive.angles_and_arm(qi, sc, inst)
@@ -56,11 +80,13 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
         wrap_deg=jnp.degrees(inst.wrap), tensions_N=tensions, span_lengths_m=drive.full_span_lengths(q, sc),
         hub_N=drive.hub_forces(q, sc, inst, v0), arm_deg=jnp.degrees(theta),
         gaps_m=jnp.stack([jnp.linalg.norm(c[i] - c[j]) - r[i] - r[j] for i, j in _pairs(len(r))]),
-        freqs_hz=freqs[1:], qi_speeds=qs[1:], good=good[1:], qi=qi, q=q,
+        freqs_hz=freqs[1:], span_weights=weights[1:], qi_speeds=qs[1:], good=good[1:], span_force_N=force,
+        qi=qi, q=q,
     )
     lam = inst.stretch
     ok = (jnp.isfinite(inst.arm_angle) & (lam > 1.0) & (lam - 1.0 <= statics.MAX_INSTALL_STRAIN)
-          & jnp.all((inst.wrap > 0) & (inst.wrap < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0))
+          & jnp.all((inst.wrap > 0) & (inst.wrap < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0)
+          & jnp.all(force > 0))
     finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in m.values()]))
     m["inst"] = inst
     m["feasible"] = ok & finite
@@ -69,38 +95,61 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
 
 def mode_masks(problem: Problem, labels: list | None, n_modes: int, n_rigid: int) -> np.ndarray:
     """(n_resonance_objectives, n_modes) 0/1 weights of the sorted modes each resonance objective
-    watches: "all" every flexible mode, N the N lowest flexible ones, "span" the modes labelled
-    transverse (``labels[j]``: the labels at objective j's lowest speed)."""
+    may watch: "all" and "span" every flexible mode (for "span" the per-speed span weights of
+    :func:`measures` then choose among them), N the N lowest flexible ones.  ``labels`` is not
+    used (it served the earlier selection by the labels at the band's lowest speed)."""
     out = np.zeros((len(_bands(problem)), n_modes))
     for j, o in enumerate(_bands(problem)):
-        if o.modes == "all":
+        if o.modes in ("all", "span"):
             out[j, n_rigid:] = 1.0
-        elif o.modes == "span":
-            out[j] = [1.0 if "transverse" in lab else 0.0 for lab in labels[j]]
         else:
             out[j, n_rigid:n_rigid + int(o.modes)] = 1.0
     return out
+
+
+def problem_masks(scene: Scene, problem: Problem) -> np.ndarray:
+    """:func:`mode_masks` of ``problem`` on ``scene`` (its number of modes and of rigid modes)."""
+    return mode_masks(problem, None, drive.n_independent(scene), drive_modal.n_rigid_modes(scene))
 
 
 def _soft_max(a, axis):
     return SOFT_HZ * jax.scipy.special.logsumexp(a / SOFT_HZ, axis=axis)
 
 
-def band_need(freqs, rpm, orders, margin, soft: bool = True):
+def band_need(freqs, rpm, orders, margin, soft: bool = True, weights=None):
     """Shift (Hz) each mode still needs to clear each order line over a speed band.
 
-    freqs (K, m) Hz at the sampled speeds rpm (K,); orders (o,).  Returns (o, m):
-    min(max_s(g + margin), max_s(margin - g))^+ with g = f - k rpm / 60; the max over speeds
-    is a log-sum-exp (temperature SOFT_HZ) when ``soft``, exact otherwise (numpy or JAX).
+    freqs (K, m) Hz at the sampled speeds rpm (K,); orders (o,); weights (K, m) or None (all 1):
+    how much each sorted mode counts at each speed (0: not watched there).  Returns (o, m):
+    min(max_s(g + margin), max_s(margin - g))^+ with g = f - k rpm / 60, the max over the speeds
+    where the mode is watched.  ``soft`` (JAX): each max is a weighted log-sum-exp
+    SOFT_HZ log(sum_s w_s exp(a_s / SOFT_HZ)) (w = 1: the plain one, which errs on the safe
+    side; w -> 0 drops the speed continuously); otherwise (numpy) the exact max over the speeds
+    where the mode is watched (w = 1, :data:`WATCHED`).  A mode watched at no speed needs nothing.
     """
     xp = jnp if soft else np
     line = xp.asarray(orders)[:, None] * xp.asarray(rpm)[None, :] / 60.0  # (o, K)
     g = xp.asarray(freqs)[None, :, :] - line[:, :, None]  # (o, K, m)
+    w = xp.broadcast_to(xp.ones(()) if weights is None else xp.asarray(weights), g.shape[1:])
     if soft:
-        down, up = _soft_max(g + margin, 1), _soft_max(margin - g, 1)
-    else:
-        down, up = np.max(g + margin, axis=1), np.max(margin - g, axis=1)
-    return xp.maximum(xp.minimum(down, up), 0.0)
+        watched = jnp.any(w > 0, axis=0)  # (m,); the where's keep the gradient finite elsewhere
+        b = jnp.where(watched[None, :], w, 1.0)[None]
+        down = SOFT_HZ * jax.scipy.special.logsumexp((g + margin) / SOFT_HZ, axis=1, b=b)
+        up = SOFT_HZ * jax.scipy.special.logsumexp((margin - g) / SOFT_HZ, axis=1, b=b)
+        return jnp.where(watched[None, :], jnp.maximum(jnp.minimum(down, up), 0.0), 0.0)
+    sel = (w >= WATCHED)[None]
+    down = np.max(np.where(sel, g + margin, -np.inf), axis=1)
+    up = np.max(np.where(sel, margin - g, -np.inf), axis=1)
+    return np.maximum(np.minimum(down, up), 0.0)
+
+
+def band_weights(m: dict, problem: Problem, masks, j: int, sl: slice, xp=jnp):
+    """(K, m) weights of the sorted modes resonance objective j watches at its sampled speeds
+    ``sl`` of :func:`measures` ``m``: its mask row, times the span weights with "span"."""
+    w = xp.asarray(masks)[j][None, :]
+    if _bands(problem)[j].modes == "span":
+        w = w * xp.asarray(m["span_weights"])[sl]
+    return w
 
 
 def _violations(c: Constraint, m: dict, scene: Scene, xp=jnp):
@@ -130,7 +179,8 @@ def terms_from_measures(m: dict, scene: Scene, problem: Problem, masks, rpm=None
     """The loss terms (name -> scalar) from :func:`measures` (JAX, or numpy with soft=False).
 
     masks: :func:`mode_masks`; rpm: the speeds the frequencies were computed at (default
-    :func:`sample_rpm`).  A resonance term is weight * sum(mask * need^2) (Hz^2), a hub load
+    :func:`sample_rpm`).  A resonance term is weight * sum(need^2) (Hz^2, :func:`band_need`
+    with :func:`band_weights`), a hub load
     weight * |F| (N), a constraint weight * sum((violation / unit)^2).
     """
     xp = jnp if soft else np
@@ -141,8 +191,9 @@ def terms_from_measures(m: dict, scene: Scene, problem: Problem, masks, rpm=None
     for i, o in enumerate(problem.objectives):
         if o.kind == "resonance_band":
             sl = slice(starts[j], starts[j] + o.speeds)
-            need = band_need(m["freqs_hz"][sl], rpm[sl], np.asarray(o.orders), o.margin_hz, soft)
-            out[names[i]] = o.weight * xp.sum(xp.asarray(masks)[j] * need**2)
+            w = band_weights(m, problem, masks, j, sl, xp)
+            need = band_need(m["freqs_hz"][sl], rpm[sl], np.asarray(o.orders), o.margin_hz, soft, w)
+            out[names[i]] = o.weight * xp.sum(need**2)
             j += 1
         else:
             F = m["hub_N"][scene.route.order.index(o.pulley)]
@@ -156,8 +207,7 @@ def terms_from_measures(m: dict, scene: Scene, problem: Problem, masks, rpm=None
 def loss_terms(scene: Scene, problem: Problem, x, masks):
     """(terms dict name -> scalar, feasible) at parameter values x (file units); pure JAX.
 
-    masks: :func:`mode_masks` of the resonance objectives (needed with modes = "span": the
-    labels come from :func:`mode_labels`).
+    masks: :func:`mode_masks` of the resonance objectives (:func:`problem_masks`).
     """
     m = measures(scene, problem, x)
     return terms_from_measures(m, scene, problem, masks), m["feasible"]
@@ -176,8 +226,9 @@ def loss(scene: Scene, problem: Problem, x, masks):
 def _loss_key(problem: Problem) -> Problem:
     """The part of a problem the loss depends on (optimiser settings cleared): the cache key of
     :func:`_compiled`, so that runs differing only in steps or learning rate share one compile."""
-    return dataclasses.replace(problem, steps=1, learning_rate=1.0, tolerance=0.0, patience=1,
-                               elements_per_span=None, description="")
+    objectives = tuple(dataclasses.replace(o, tolerance_hz=0.0) for o in problem.objectives)
+    return dataclasses.replace(problem, objectives=objectives, steps=1, learning_rate=1.0, tolerance=0.0, patience=1,
+                               elements_per_span=None, description="", min_steps=0, starts=1)
 
 
 @functools.lru_cache(maxsize=16)
@@ -185,7 +236,7 @@ def _compiled(problem: Problem):
     """Jitted f(z, scene, rpm, masks) -> ((loss, (terms, measures)), d loss / d z), z = x / scale.
 
     rpm and masks are arguments, so the same compiled function also gives the frequencies
-    over a Campbell grid (in chunks of len(rpm)) and takes the mode selection of "span"."""
+    over a Campbell grid (in chunks of len(rpm)); the selection of "span" is made inside."""
     scales = jnp.asarray(problem.scales)
 
     def f(z, scene, rpm, masks):
@@ -201,39 +252,3 @@ def _compiled(problem: Problem):
 def _measures_jit(problem: Problem):
     """Jitted measures(scene, x, rpm) (no gradient): the check on a finer mesh."""
     return jax.jit(lambda scene, x, rpm: measures(scene, problem, x, rpm))
-
-
-def mode_labels(scene: Scene, qi, inst, rpm: float) -> list[str] | None:
-    """Labels of the modes of ``scene`` about the equilibrium (qi, inst) at drive-pulley speed
-    ``rpm`` (see :func:`beltjax.drive_modal.label_modes`); None if unstable there.
-
-    The shapes are those of (M, K) at that steady motion (centrifugal stiffness included, the
-    gyroscopic coupling left out): real shapes, whose half-waves count reliably, and the same
-    sorted order as the gyroscopic frequencies unless two modes nearly coincide."""
-    sc = drive.canonical(scene)
-    v = float(drive.belt_speed(sc, rpm))
-    qi = jnp.asarray(qi)
-    out = drive_modal.modes_at(sc, qi, inst, v, False)
-    if not bool(out["stable"]):
-        return None
-    labels, _ = drive_modal.label_modes(out["freqs"], out["shapes"], qi, sc, inst, out["J"])
-    return labels
-
-
-def _labels_and_masks(scene: Scene, problem: Problem, m: dict) -> tuple[list, np.ndarray]:
-    """Labels at each resonance objective's lowest sampled speed and the mode masks, from a
-    :func:`measures` result ``m`` (numpy)."""
-    rpm, labels = sample_rpm(problem), []
-    for o, k in zip(_bands(problem), _band_starts(problem)):
-        lab = mode_labels(scene, m["qi_speeds"][k], m["inst"], float(rpm[k]))
-        if lab is None:
-            raise OptimizeError(f"the drive is unstable at {rpm[k]:g} rpm",
-                                f"objective[{problem.objectives.index(o)}].rpm")
-        labels.append(lab)
-    n = drive.n_independent(scene)
-    masks = mode_masks(problem, labels, n, drive_modal.n_rigid_modes(scene))
-    for j, o in enumerate(_bands(problem)):
-        if not masks[j].any():
-            raise OptimizeError(f"no mode is selected by modes = {o.modes!r}",
-                                f"objective[{problem.objectives.index(o)}].modes")
-    return labels, masks

@@ -14,6 +14,8 @@ from beltjax.errors import BeltjaxError
 from beltjax.scene import MAX_ELEMENTS_PER_SPAN, Scene
 from beltjax.tomltable import describe
 
+#: most starts of one run (``starts``); the candidates for starts after the first: see beltjax.optimize.solver
+MAX_STARTS = 16
 #: temperature (Hz) of the log-sum-exp maximum over the sampled speeds
 SOFT_HZ = 0.5
 OBJECTIVES = ("resonance_band", "hub_load")
@@ -22,11 +24,11 @@ CONSTRAINTS = ("min_wrap_deg", "static_tension", "arm_angle_deg", "no_overlap")
 _UNIT = {"min_wrap_deg": 1.0, "static_tension": 10.0, "arm_angle_deg": 1.0, "no_overlap": 1e-3}
 _TOLERANCE = {"min_wrap_deg": 0.5, "static_tension": 2.0, "arm_angle_deg": 0.2, "no_overlap": 2e-4}
 _UNIT_NAME = {"min_wrap_deg": "deg", "static_tension": "N", "arm_angle_deg": "deg", "no_overlap": "m"}
-_TOP_KEYS = ("steps", "learning_rate", "tolerance", "patience", "elements_per_span", "description",
-             "variable", "objective", "constraint")
+_TOP_KEYS = ("steps", "learning_rate", "tolerance", "patience", "min_steps", "starts", "elements_per_span",
+             "description", "variable", "objective", "constraint")
 _VARIABLE_KEYS = ("parameter", "lower", "upper", "scale")
 _OBJECTIVE_KEYS = {
-    "resonance_band": ("kind", "orders", "rpm", "modes", "margin_hz", "speeds", "weight"),
+    "resonance_band": ("kind", "orders", "rpm", "modes", "margin_hz", "tolerance_hz", "speeds", "weight"),
     "hub_load": ("kind", "pulley", "weight"),
 }
 _CONSTRAINT_KEYS = {
@@ -57,8 +59,9 @@ class Variable:
 @dataclass(frozen=True)
 class Objective:
     """One objective term.  resonance_band: orders, rpm = (lo, hi) of the drive pulley (rpm),
-    modes ("span", "all" or a number of lowest flexible modes), margin_hz (Hz), speeds
-    (samples in the band); hub_load: pulley (a route entry).  weight >= 0."""
+    modes ("span", "all" or a number of lowest flexible modes), margin_hz (Hz), tolerance_hz
+    (Hz: the shift still needed that counts as clear), speeds (samples in the band); hub_load:
+    pulley (a route entry).  weight >= 0."""
 
     kind: str
     weight: float = 1.0
@@ -66,6 +69,7 @@ class Objective:
     rpm: tuple[float, float] = (0.0, 0.0)
     modes: str | int = "span"
     margin_hz: float = 2.0
+    tolerance_hz: float = 0.05
     speeds: int = 9
     pulley: str = ""
 
@@ -97,6 +101,8 @@ class Problem:
     patience: int = 30
     elements_per_span: int | None = None
     description: str = ""
+    min_steps: int = 40
+    starts: int = 3
 
     @property
     def paths(self) -> list[str]:
@@ -179,6 +185,7 @@ def _parse_objective(d, i: int, scene: Scene) -> Objective:
     return Objective(
         kind, weight, orders=tuple(float(k) for k in orders), rpm=(float(rpm[0]), float(rpm[1])), modes=modes,
         margin_hz=t.number("margin_hz", required=False, default=2.0, nonnegative=True),
+        tolerance_hz=t.number("tolerance_hz", required=False, default=0.05, nonnegative=True),
         speeds=t.integer("speeds", required=False, default=9, minimum=2, maximum=64),
     )
 
@@ -240,6 +247,8 @@ def parse(spec: dict, scene: Scene) -> Problem:
         patience=t.integer("patience", required=False, default=30, minimum=1),
         elements_per_span=t.integer("elements_per_span", required=False, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN),
         description=t.string("description", required=False, default=""),
+        min_steps=t.integer("min_steps", required=False, default=40, minimum=0),
+        starts=t.integer("starts", required=False, default=3, minimum=1, maximum=MAX_STARTS),
     )
 
 

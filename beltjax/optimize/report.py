@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable
 
@@ -9,11 +10,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, statics
+from beltjax import drive, drive_modal, statics
 from beltjax.scene import TENSIONER, Scene
-from beltjax.optimize.loss import (_compiled, _labels_and_masks, _loss_key, _measures_jit, _violations, band_need,
-                                   terms_from_measures)
-from beltjax.optimize.problem import _UNIT_NAME, OptimizeError, Problem, _bands, sample_rpm
+from beltjax.optimize.goal import overlaps
+from beltjax.optimize.loss import (WATCHED, _compiled, _loss_key, _measures_jit, _violations, band_need,
+                                   band_weights, problem_masks, terms_from_measures)
+from beltjax.optimize.problem import _UNIT_NAME, OptimizeError, Problem, _band_starts, _bands, sample_rpm
 from beltjax.optimize.solver import OptimizeResult, _floats
 
 
@@ -51,32 +53,62 @@ def _value_text(c: dict) -> str:
     return text + ("" if c["satisfied"] else f" (violated by {c['violation']:.3g})")
 
 
-def resonance_report(rpm, freqs, labels, problem: Problem, masks) -> list[dict]:
-    """Per resonance objective, from a Campbell sweep (rpm (n,), freqs (n, m) Hz, labels (m,)):
-    crossings of the watched modes (``masks``, :func:`mode_masks`) with the order lines inside
-    the band, the closest approach (Hz) of a watched mode to an order line in the band, and the
-    largest shift still needed (Hz, exact max over the band's speeds of the sweep)."""
+def resonance_report(rpm, freqs, labels, problem: Problem, masks, weights=None) -> list[dict]:
+    """Per resonance objective, from a Campbell sweep (rpm (n,), freqs (n, m) Hz; NaN where
+    unstable): crossings of the watched modes with the order lines inside the band, the closest
+    approach (Hz) of a watched mode to an order line in the band, and the largest shift still
+    needed (Hz, exact max over the band's speeds of the sweep) with the mode that needs it; the
+    band is clear when that shift is within its tolerance_hz and no speed in it is unstable.
+
+    masks: :func:`~beltjax.optimize.loss.mode_masks`; weights (n, m): the span weights of
+    :func:`~beltjax.optimize.loss.measures` at each speed (a sorted mode is watched at a speed
+    where its weight is 1; needed with modes = "span", None: 1); labels: the labels (m,)
+    used at every speed, or a callable i -> labels (m,) at rpm[i] (each mode is named where it
+    is reported).  A band with an unstable speed inside is not clear (``unstable_rpm``).
+    """
     from beltjax import campbell
 
     rpm, freqs = np.asarray(rpm, float), np.asarray(freqs, float)
+    label_at = labels if callable(labels) else (lambda i: labels)
+    W_all = np.ones_like(freqs) if weights is None else np.asarray(weights, float)
     out = []
     for j, o in enumerate(_bands(problem)):
-        modes = [k for k in np.flatnonzero(np.asarray(masks)[j]) if k < freqs.shape[1]]
-        inside = (rpm >= o.rpm[0] - 1e-9) & (rpm <= o.rpm[1] + 1e-9)
-        cx = [c for c in campbell.crossings(rpm[inside], freqs[inside], o.orders, labels)
-              if c["mode"] - 1 in modes]
-        F = freqs[inside][:, modes]
-        g = F[None] - np.asarray(o.orders)[:, None, None] * rpm[inside][None, :, None] / 60.0
-        need = band_need(F, rpm[inside], np.asarray(o.orders), o.margin_hz, soft=False)
-        a = np.unravel_index(np.nanargmin(np.abs(g)), g.shape)
+        idx = np.flatnonzero((rpm >= o.rpm[0] - 1e-9) & (rpm <= o.rpm[1] + 1e-9))
+        F, r = freqs[idx], rpm[idx]
+        W = np.where(np.isfinite(F), band_weights(dict(span_weights=W_all), problem, masks, j, idx, np), 0.0)
+        sel = W >= WATCHED  # (K, m): watched there
+        modes = [int(k) for k in np.flatnonzero(np.any(sel, axis=0))]
+        cx = []
+        for c in campbell.crossings(r, F, o.orders):
+            i = min(int(np.searchsorted(r, c["rpm"])), r.size - 1)
+            i = i - 1 if i > 0 and c["rpm"] - r[i - 1] < r[i] - c["rpm"] else i  # the nearer sampled speed
+            if sel[i, c["mode"] - 1]:
+                cx.append(dict(c, label=label_at(idx[i])[c["mode"] - 1]))
+        g = F[None] - np.asarray(o.orders)[:, None, None] * r[None, :, None] / 60.0  # (o, K, m)
+        dist = np.where(sel[None] & np.isfinite(g), np.abs(g), np.inf)
+        a = np.unravel_index(np.argmin(dist), dist.shape)
+        need = band_need(np.nan_to_num(F, nan=0.0), r, np.asarray(o.orders), o.margin_hz, soft=False, weights=W)
+        b = np.unravel_index(np.argmax(need), need.shape)  # (order, mode) that needs the largest shift
+        i_need = int(np.argmin(dist[b[0], :, b[1]]))  # where that mode comes closest to that line
+        unstable = [float(v) for v in r[~np.all(np.isfinite(F), axis=1)]]
         out.append(dict(
             objective=problem.objectives.index(o), orders=list(o.orders), rpm=list(o.rpm), margin_hz=o.margin_hz,
-            modes=[int(k) + 1 for k in modes], n_modes_checked=int(freqs.shape[1]), crossings=cx,
-            clear=bool(np.nanmax(need) <= 0.0), closest_hz=float(np.abs(g[a])), closest_mode=int(modes[a[2]]) + 1,
-            closest_label=labels[modes[a[2]]], closest_rpm=float(rpm[inside][a[1]]),
-            max_need_hz=float(np.nanmax(need)),
+            modes=[k + 1 for k in modes], n_modes_checked=int(freqs.shape[1]), crossings=cx,
+            clear=bool(np.max(need) <= o.tolerance_hz and not unstable), tolerance_hz=o.tolerance_hz,
+            **_closest(dist, a, r, idx, label_at),
+            max_need_hz=float(np.max(need)), need_mode=int(b[1]) + 1, need_order=float(o.orders[b[0]]),
+            need_label=label_at(idx[i_need])[b[1]],
+            unstable_rpm=unstable,
         ))
     return out
+
+
+def _closest(dist, a, r, idx, label_at) -> dict:
+    """closest_hz, closest_mode, closest_label, closest_rpm of a watched mode to an order line (None: none watched)."""
+    if not np.isfinite(dist[a]):
+        return dict(closest_hz=None, closest_mode=None, closest_label=None, closest_rpm=None)
+    return dict(closest_hz=float(dist[a]), closest_mode=int(a[2]) + 1, closest_label=label_at(idx[a[1]])[a[2]],
+                closest_rpm=float(r[a[1]]))
 
 
 def _band_grid(problem: Problem, n: int = 41) -> np.ndarray:
@@ -125,47 +157,112 @@ def _static_result(scene: Scene, m: dict) -> statics.StaticResult:
     return res
 
 
+def mode_labels(scene: Scene, qi, inst, rpm: float) -> list[str] | None:
+    """Labels of the modes of ``scene`` about the equilibrium (qi, inst) at drive-pulley speed
+    ``rpm`` (see :func:`beltjax.drive_modal.label_modes`); None if unstable there.
+
+    The shapes are the gyroscopic modes' (with the ``transport`` effect and a moving belt), as
+    ``beltjax modal`` labels them: the modes whose frequencies the optimisation uses, in their
+    sorted order.  (The real shapes of (M, K) without the gyroscopic coupling, used before
+    issue 20, sort differently where a span mode passes another one, and then named the
+    wrong mode.)"""
+    sc = drive.canonical(scene)
+    v = float(drive.belt_speed(sc, rpm))
+    qi = jnp.asarray(qi)
+    out = drive_modal.modes_at(sc, qi, inst, v, sc.model.has("transport") and v != 0.0)
+    if not bool(out["stable"]):
+        return None
+    labels, _ = drive_modal.label_modes(out["freqs"], out["shapes"], qi, sc, inst, out["J"])
+    return labels
+
+
 def check(scene: Scene, problem: Problem, evaluate: Callable, n_modes: int | None = None) -> dict:
-    """Statics, Campbell diagram, constraint report and loss terms of ``scene`` (its own mesh).
+    """Statics, Campbell diagram, constraint and resonance reports and loss terms of ``scene``
+    (its own mesh).
 
     evaluate(rpm) -> :func:`measures` (numpy) of ``scene`` at speeds ``rpm`` (an array of
-    len(:func:`sample_rpm`)); the Campbell grid is evaluated in chunks of that length.
-    n_modes: lowest modes kept in the diagram (default 20).  The loss terms use the exact max
-    over the sampled speeds.  Returns a dict: statics (StaticResult), campbell (CampbellResult
-    or None), labels, masks, constraints, resonance, terms, loss.
+    len(:func:`sample_rpm`)); the Campbell grid is evaluated in chunks of that length, with
+    each mode's span weight at each grid speed (the "span" selection) and labels where a mode is
+    reported.  n_modes: lowest modes kept in the diagram (default 20).  The loss terms use the
+    exact max over the sampled speeds.  Returns a dict: statics (StaticResult), campbell
+    (CampbellResult or None), labels (per band, at its lowest speed), masks, constraints,
+    resonance, overlaps, span_force_min_N, terms, loss.  Raises OptimizeError when the layout
+    cannot be built or run on this mesh.
     """
     from beltjax import campbell
 
     rpm = sample_rpm(problem)
     m = evaluate(rpm)
     if not bool(m["feasible"]):
-        raise OptimizeError("the layout is infeasible on the scene's mesh", "scene")
+        raise OptimizeError("the layout is infeasible on the scene's mesh (the belt cannot be fitted, no static "
+                            "equilibrium, unstable in the speed band, or a span past its critical speed)", "scene")
     n = drive.n_independent(scene)
-    cb, res, labels, masks = None, [], [], np.zeros((0, n))
+    masks = problem_masks(scene, problem)
+    cb, res, labels = None, [], []
     if rpm.size:
-        labels, masks = _labels_and_masks(scene, problem, m)
+        labels = [mode_labels(scene, m["qi_speeds"][k], m["inst"], float(rpm[k])) for k in _band_starts(problem)]
         grid = _band_grid(problem)
         k = rpm.size
-        F, good = [], []
+        F, W, good, Q = [], [], [], []
         for s in range(0, grid.size, k):
             part = grid[s:s + k]
             mc = evaluate(np.concatenate([part, np.full(k - part.size, part[-1])]))
             F.append(np.asarray(mc["freqs_hz"])[:part.size])
+            W.append(np.asarray(mc["span_weights"])[:part.size])
             good.append(np.asarray(mc["good"])[:part.size])
-        F, good = np.concatenate(F), np.concatenate(good)
+            Q.append(np.asarray(mc["qi_speeds"])[:part.size])
+        F, W, good, Q = (np.concatenate(a) for a in (F, W, good, Q))
         F = np.where(good[:, None], F, np.nan)
+        first = labels[0] or ["unstable"] * n
         keep = min(n, n_modes or 20)
         orders = tuple(sorted({k for o in _bands(problem) for k in o.orders}))
         cb = campbell.CampbellResult(
-            rpm=grid, frequencies_hz=F[:, :keep], labels=labels[0][:keep], orders=orders,
-            crossings=campbell.crossings(grid, F[:, :keep], orders, labels[0][:keep]), stable=good, converged=good,
+            rpm=grid, frequencies_hz=F[:, :keep], labels=first[:keep], orders=orders,
+            crossings=campbell.crossings(grid, F[:, :keep], orders, first[:keep]), stable=good, converged=good,
             drive_pulley=scene.route.order[drive.drive_pulley(scene)], transport=scene.model.has("transport"),
         )
-        res = resonance_report(grid, F, labels[0], problem, masks)
+
+        @functools.lru_cache(maxsize=None)
+        def label_at(i):
+            return mode_labels(scene, Q[i], m["inst"], float(grid[i])) or ["unstable"] * n
+
+        res = resonance_report(grid, F, label_at, problem, masks, W)
     terms = _floats(terms_from_measures(m, scene, problem, masks, rpm, soft=False))
     return dict(statics=_static_result(scene, m), campbell=cb, labels=labels, masks=masks,
-                constraints=constraint_report(m, scene, problem), resonance=res, terms=terms,
-                loss=float(sum(terms.values())))
+                constraints=constraint_report(m, scene, problem), resonance=res, overlaps=overlaps(m, scene),
+                span_force_min_N=float(np.min(m["span_force_N"])), terms=terms, loss=float(sum(terms.values())))
+
+
+def unmet(chk: dict) -> list[dict]:
+    """What a checked layout (:func:`check`) misses of the goal (:mod:`beltjax.optimize.goal`):
+    a list of dicts {what, by, unit, text}, empty when the goal is met.  ``by``: how far off
+    (a constraint's violation beyond its tolerance, the shift a band's mode still needs, Hz)."""
+    out = []
+    for a, b, g in chk["overlaps"]:
+        out.append(dict(what="geometry", by=-g, unit="m", text=f"pulleys {a} and {b} overlap by {-g * 1e3:.3g} mm"))
+    for c in chk["constraints"]:
+        if not c["satisfied"]:
+            name = f"constraint[{c['constraint']}] {c['kind']}"
+            out.append(dict(what=name, by=c["violation"] - c["tolerance"], unit=c["unit"],
+                            text=f"{name}: {_describe_constraint(c)} not met: {_value_text(c)} {c['unit']} "
+                                 f"(tolerance {c['tolerance']:g} {c['unit']})"))
+    for r in chk["resonance"]:
+        if r["clear"]:
+            continue
+        name = f"objective[{r['objective']}] resonance_band"
+        cx = r["crossings"]
+        text = (f"{name}: {len(cx)} crossing{'' if len(cx) == 1 else 's'} of a watched mode with an order line in "
+                f"{r['rpm'][0]:g}-{r['rpm'][1]:g} rpm"
+                + "".join(f"; mode {c['mode']} ({c['label']}) x {c['order']:g}x at {c['rpm']:.0f} rpm, "
+                          f"{c['frequency_hz']:.1f} Hz" for c in cx[:3]) + ("; ..." if len(cx) > 3 else ""))
+        if r["max_need_hz"] > 0:
+            text += (f"; mode {r['need_mode']} ({r['need_label']}) needs a shift of {r['max_need_hz']:.3g} Hz to "
+                     f"clear the {r['need_order']:g}x line by the {r['margin_hz']:g} Hz margin (tolerance "
+                     f"{r['tolerance_hz']:g} Hz)")
+        if r["unstable_rpm"]:
+            text += f"; unstable at {', '.join(f'{v:.0f}' for v in r['unstable_rpm'][:3])} rpm"
+        out.append(dict(what=name, by=r["max_need_hz"], unit="Hz", text=text))
+    return out
 
 
 def evaluator(scene: Scene, problem: Problem, x, result: OptimizeResult | None = None) -> Callable:
@@ -176,7 +273,7 @@ def evaluator(scene: Scene, problem: Problem, x, result: OptimizeResult | None =
     x = np.asarray(x, float)
     if result is not None and sc.model == result.working.model:
         vg = _compiled(_loss_key(problem))
-        masks = jnp.asarray(result.masks)
+        masks = jnp.asarray(problem_masks(sc, problem))
 
         def evaluate(rpm):
             (_, (_, m)), _ = vg(jnp.asarray(x / problem.scales), sc, jnp.asarray(rpm, float), masks)
