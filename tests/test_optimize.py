@@ -439,3 +439,24 @@ def test_goal_not_met_exits_3_and_says_why(two_pulley, tmp_path, capsys):
     assert u["what"] == "objective[0] resonance_band" and u["unit"] == "Hz" and u["by"] > 1.0
     assert len(data["starts"]) == 2 and [s["start"] for s in data["starts"]] == [0, 1]
     assert data["history"][data["result"]["history_index"]]["valid"]
+
+
+def test_gradient_is_exact_with_repeated_pairs(two_pulley):
+    """The two-pulley drive's strands are equal: its span modes come in repeated pairs (both
+    with span weight 1, so the pair enters symmetrically).  d loss / d x equals a central
+    difference at two layouts."""
+    _, sc, problem = two_pulley
+    work = optimize.working_scene(sc, problem)
+    vg = optimize._compiled(optimize._loss_key(problem))
+    rpm, masks = jnp.asarray(optimize.sample_rpm(problem)), jnp.asarray(optimize.problem_masks(work, problem))
+    for x in (0.72, 0.745):
+        z = np.array([x]) / problem.scales
+        (val, (_, m)), g = vg(jnp.asarray(z), work, rpm, masks)
+        F, W = np.asarray(m["freqs_hz"]), np.asarray(m["span_weights"])
+        span = F[0][W[0] == 1.0]
+        assert np.all(np.abs(span[0::2] - span[1::2])[:3] < 1e-6 * span[1::2][:3]), span[:6]  # repeated pairs
+        h = 1e-4
+        (vp, _), _ = vg(jnp.asarray(z + h), work, rpm, masks)
+        (vm, _), _ = vg(jnp.asarray(z - h), work, rpm, masks)
+        fd = (float(vp) - float(vm)) / (2 * h)
+        assert float(val) > 0 and abs(float(g[0]) - fd) <= 1e-5 * abs(fd), (x, float(g[0]), fd)

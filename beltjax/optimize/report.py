@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, statics
+from beltjax import drive, drive_modal, modal, statics
 from beltjax.scene import TENSIONER, Scene
 from beltjax.optimize.goal import overlaps
 from beltjax.optimize.loss import (WATCHED, _compiled, _loss_key, _measures_jit, _violations, band_need,
@@ -159,13 +159,17 @@ def _static_result(scene: Scene, m: dict) -> statics.StaticResult:
 
 def mode_labels(scene: Scene, qi, inst, rpm: float) -> list[str] | None:
     """Labels of the modes of ``scene`` about the equilibrium (qi, inst) at drive-pulley speed
-    ``rpm`` (see :func:`beltjax.drive_modal.label_modes`); None if unstable there.
+    ``rpm``, in the sorted order of the modes the optimisation uses (gyroscopic with the
+    ``transport`` effect and a moving belt); None if unstable there.
 
-    The shapes are the gyroscopic modes' (with the ``transport`` effect and a moving belt), as
-    ``beltjax modal`` labels them: the modes whose frequencies the optimisation uses, in their
-    sorted order.  (The real shapes of (M, K) without the gyroscopic coupling, used before
-    issue 20, sort differently where a span mode passes another one, and then named the
-    wrong mode.)"""
+    Kind and span(s) are those of :func:`beltjax.drive_modal.label_modes` on these modes (their
+    kinetic-energy shares: the same split as the "span" selection); a transverse or longitudinal
+    mode's ordinal counts, in frequency order, the modes of its kind and span(s) (the half-wave
+    count of a gyroscopic mode's shape can be one too high: its travelling phase makes an
+    apparent node).  Before issue 20 the labels came from the real shapes of (M, K) without the
+    gyroscopic coupling, which sort differently where a span mode passes another one, and then
+    named the wrong mode.
+    """
     sc = drive.canonical(scene)
     v = float(drive.belt_speed(sc, rpm))
     qi = jnp.asarray(qi)
@@ -173,7 +177,14 @@ def mode_labels(scene: Scene, qi, inst, rpm: float) -> list[str] | None:
     if not bool(out["stable"]):
         return None
     labels, _ = drive_modal.label_modes(out["freqs"], out["shapes"], qi, sc, inst, out["J"])
-    return labels
+    seen, named = {}, []
+    for lab in labels:
+        _, _, rest = lab.partition(" ")
+        if rest.startswith(("transverse", "longitudinal")):
+            seen[rest] = seen.get(rest, 0) + 1
+            lab = f"{modal.ordinal(seen[rest])} {rest}"
+        named.append(lab)
+    return named
 
 
 def check(scene: Scene, problem: Problem, evaluate: Callable, n_modes: int | None = None) -> dict:
@@ -244,8 +255,9 @@ def unmet(chk: dict) -> list[dict]:
         if not c["satisfied"]:
             name = f"constraint[{c['constraint']}] {c['kind']}"
             out.append(dict(what=name, by=c["violation"] - c["tolerance"], unit=c["unit"],
-                            text=f"{name}: {_describe_constraint(c)} not met: {_value_text(c)} {c['unit']} "
-                                 f"(tolerance {c['tolerance']:g} {c['unit']})"))
+                            text=f"{name}: {_describe_constraint(c)} not met: {_value_text(dict(c, satisfied=True))} "
+                                 f"{c['unit']}, violated by {c['violation']:.3g} {c['unit']} (tolerance "
+                                 f"{c['tolerance']:g} {c['unit']})"))
     for r in chk["resonance"]:
         if r["clear"]:
             continue

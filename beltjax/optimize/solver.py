@@ -235,8 +235,7 @@ def optimise(scene: Scene, problem: Problem, progress: Callable[[dict], None] | 
                 e, state = new, new_state
                 record(e, s, rate)
                 if rule.update(e["loss"]):
-                    reason, converged = (f"stalled: no relative improvement above {problem.tolerance:g} of the "
-                                         f"smoothed loss in {problem.patience} steps"), True
+                    reason, converged = rule.reason, True
                     break
             if progress is not None:
                 progress(dict(start=s + 1, starts=problem.starts, step=k, steps=problem.steps, loss=e["loss"],

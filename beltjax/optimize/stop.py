@@ -69,6 +69,15 @@ class StopRule:
         return t >= self.min_steps and (t - self.last_improvement >= self.patience
                                         or t - self.last_record >= LONG * self.patience)
 
+    @property
+    def reason(self) -> str:
+        """Why the start stalled (for the reports)."""
+        t = len(self.smoothed) - 1
+        if t - self.last_improvement >= self.patience:
+            return (f"stalled: no new low of the smoothed loss (relative {self.tolerance:g}, against the previous "
+                    f"{WINDOW}) in {self.patience} steps")
+        return f"stalled: no new record of the smoothed loss (relative {self.tolerance:g}) in {LONG * self.patience} steps"
+
 
 def stall_step(losses, tolerance: float, patience: int, min_steps: int = 0) -> int | None:
     """Index into ``losses`` (the loss at the start, then after each accepted step) at which
