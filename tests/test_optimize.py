@@ -432,6 +432,7 @@ def test_goal_not_met_exits_3_and_says_why(two_pulley, tmp_path, capsys):
     assert cli.main(["optimize", str(path), str(spec), "--out", str(out)]) == optimize.GOAL_NOT_MET == 3
     cap = capsys.readouterr()
     assert "GOAL NOT MET" in cap.out and "objective[0] resonance_band" in cap.out
+    assert "had overlapping pulleys: never taken as the result" in cap.out
     assert "optimize: goal not met: objective[0] resonance_band" in cap.err
     data = json.loads((out / "optimize.json").read_text())
     assert data["goal_met"] is False

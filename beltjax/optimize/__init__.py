@@ -8,8 +8,8 @@ start), ``learning_rate`` (> 0, default 0.01: Adam's step in scaled variables, d
 cosine to a tenth of it over ``steps``), ``tolerance`` (>= 0, default 1e-4), ``patience``
 (int >= 1, default 30) and ``min_steps`` (int >= 0, default 40): a start stops when its
 smoothed loss has made no new low (by more than ``tolerance``, relative) against its previous
-10 values for ``patience`` steps, never before ``min_steps`` steps
-(:mod:`beltjax.optimize.stop`), or when the loss reaches 0; ``starts`` (int 1 to 16,
+10 values for ``patience`` steps (or no new record for 3 x ``patience``), never before
+``min_steps`` steps (:mod:`beltjax.optimize.stop`), or when the loss reaches 0; ``starts`` (int 1 to 16,
 default 3): while no step has met the goal, the run tries further starts
 (:mod:`beltjax.optimize.solver`); ``elements_per_span`` (int, 1 to 400): a coarser mesh for
 the optimisation (the result is checked with the scene's own mesh at the end);
@@ -72,9 +72,8 @@ With "span" each sorted mode counts only at the speeds where it is a transverse 
 weight there (1 for a span mode, falling to 0 for a mode whose transverse share trails by 0.1;
 from its kinetic-energy shares, computed inside the compiled loss from its eigenvectors and held
 out of the gradient: :mod:`beltjax.optimize.modes`) weights that speed in the log-sum-exp
-(:func:`band_need`).  So when a span mode passes a rotational one
-inside the band (their sorted places swap), the term follows the span mode across the swap,
-at every step.  Modes of two equal spans (a repeated pair) are both span modes with weight 1,
+(:func:`band_need`).  So when a span mode passes a rotational one inside the band (their
+sorted places swap), the term follows the span mode across the swap, at every step.  Modes of two equal spans (a repeated pair) are both span modes with weight 1,
 so the pair enters symmetrically and the gradient stays exact.  The report and the goal use
 the exact max over the speeds where a mode's weight is 1 (where its label says "transverse");
 every such mode counts fully in the loss too, so a zero resonance term means a clear band.

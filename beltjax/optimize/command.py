@@ -79,7 +79,7 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     def progress(d):
         if d["step"] % every == 0 or d["step"] == d["steps"]:
             start = f"start {d['start']}/{d['starts']} " if d["starts"] > 1 else ""
-            print(f"optimize: {start}step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  best {d['best']:.5g}  "
+            print(f"optimize: {start}step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  result {d['best']:.5g}  "
                   f"learning rate {d['learning_rate']:.3g}  rejected {d['rejected']}", file=sys.stderr, flush=True)
 
     res = optimise(scene, problem, progress)
@@ -150,6 +150,9 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     print(_table(res, before, after))
     if note:
         print(note)
+    skipped = sum(not h["valid"] for h in res.history)
+    if skipped:
+        print(f"{skipped} accepted steps had overlapping pulleys: never taken as the result")
     print("")
     if not missing:
         print("goal met: every resonance band clear with its margin and every constraint within its tolerance "

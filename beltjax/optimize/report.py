@@ -263,16 +263,16 @@ def unmet(chk: dict) -> list[dict]:
             continue
         name = f"objective[{r['objective']}] resonance_band"
         cx = r["crossings"]
-        text = (f"{name}: {len(cx)} crossing{'' if len(cx) == 1 else 's'} of a watched mode with an order line in "
-                f"{r['rpm'][0]:g}-{r['rpm'][1]:g} rpm"
-                + "".join(f"; mode {c['mode']} ({c['label']}) x {c['order']:g}x at {c['rpm']:.0f} rpm, "
-                          f"{c['frequency_hz']:.1f} Hz" for c in cx[:3]) + ("; ..." if len(cx) > 3 else ""))
+        parts = [f"{len(cx)} crossing{'' if len(cx) == 1 else 's'} of a watched mode with an order line"
+                 + "".join(f"; mode {c['mode']} ({c['label']}) x {c['order']:g}x at {c['rpm']:.0f} rpm, "
+                           f"{c['frequency_hz']:.1f} Hz" for c in cx[:3]) + ("; ..." if len(cx) > 3 else "")] if cx else []
         if r["max_need_hz"] > 0:
-            text += (f"; mode {r['need_mode']} ({r['need_label']}) needs a shift of {r['max_need_hz']:.3g} Hz to "
-                     f"clear the {r['need_order']:g}x line by the {r['margin_hz']:g} Hz margin (tolerance "
-                     f"{r['tolerance_hz']:g} Hz)")
+            parts.append(f"mode {r['need_mode']} ({r['need_label']}) needs a shift of {r['max_need_hz']:.3g} Hz to "
+                         f"clear the {r['need_order']:g}x line by the {r['margin_hz']:g} Hz margin (tolerance "
+                         f"{r['tolerance_hz']:g} Hz)")
         if r["unstable_rpm"]:
-            text += f"; unstable at {', '.join(f'{v:.0f}' for v in r['unstable_rpm'][:3])} rpm"
+            parts.append(f"unstable at {', '.join(f'{v:.0f}' for v in r['unstable_rpm'][:3])} rpm")
+        text = f"{name} ({r['rpm'][0]:g}-{r['rpm'][1]:g} rpm): " + "; ".join(parts)
         out.append(dict(what=name, by=r["max_need_hz"], unit="Hz", text=text))
     return out
 
