@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.data import DataError, number, read_csv
+from identification.data import DataError, dataset_file, number, read_csv
 
 __all__ = ["TorqueAngleFit", "fit_torque_angle", "branch_directions", "torque_model", "KEYS"]
 
@@ -358,7 +358,7 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     fname = section.get("file")
     if not isinstance(fname, str) or not fname:
         raise DataError(f"{key}.file", "missing (a CSV file with columns angle_deg, torque_Nm)")
-    path = pathlib.Path(base) / fname
+    path = dataset_file(base, fname, f"{key}.file")
     torque_sign = _choice(section, "torque_sign", key, ("spring", "applied"))
     sense = _choice(section, "angle_sense", key, ("ccw", "cw"))
     friction = _choice(section, "friction", key, ("constant", "linear"))
