@@ -1154,7 +1154,7 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     if src.is_file():
         head = (f"# optimised by beltjax optimize ({spec_path}): "
                 + ", ".join(f"{p} {a:.6g} -> {b:.6g}" for p, a, b in zip(res.paths, res.x0, res.x)) + "\n")
-        text = head + edit_scene_text(src.read_text(), scene, changes)
+        text = head + edit_scene_text(textfile.read_text(src, "scene"), scene, changes)  # no byte-order mark
         _verify_scene_text(text, scene, changes)
         (out / "optimized_scene.toml").write_text(text)
         files.append("optimized_scene.toml")

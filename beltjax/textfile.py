@@ -91,6 +91,8 @@ def read_text(path, kind: str, fail: Fail = _raise) -> str:
     noun, limit = NOUNS[kind], LIMITS[kind]
     if not p:
         fail(p, f"empty file name for the {noun}")
+    if "\0" in p:
+        fail(p.replace("\0", "\\0"), "a file name cannot hold a NUL character")
     try:
         st = os.stat(p)
     except (FileNotFoundError, NotADirectoryError):

@@ -519,13 +519,13 @@ def fit_impulse(section: dict, base: pathlib.Path, key: str = "impulse") -> Impu
             raise DataError(f"{rkey}.file", "missing (a CSV file with columns time_s, response)")
         modes = rec.get("modes", 1)
         if isinstance(modes, bool) or not isinstance(modes, int) or not 1 <= modes <= MAX_MODES:
-            raise DataError(f"{rkey}.modes", f"must be a whole number from 1 to {MAX_MODES}, got {modes!r}")
+            raise DataError(f"{rkey}.modes", f"must be a whole number from 1 to {MAX_MODES}, got {show(modes)}")
         offset = rec.get("offset", True)
         if not isinstance(offset, bool):
-            raise DataError(f"{rkey}.offset", f"must be true or false, got {offset!r}")
+            raise DataError(f"{rkey}.offset", f"must be true or false, got {show(offset)}")
         name = rec.get("name", pathlib.Path(fname).stem)
         if not isinstance(name, str) or not name:
-            raise DataError(f"{rkey}.name", f"must be a non-empty string, got {name!r}")
+            raise DataError(f"{rkey}.name", f"must be a non-empty string, got {show(name)}")
         if _safe(name) in plotted:  # the record's plot file would overwrite the other's
             raise DataError(f"{rkey}.{'name' if 'name' in rec else 'file'}",
                             f"record name {show(name)} is taken by {plotted[_safe(name)]} (its plot is named by "

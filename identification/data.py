@@ -29,6 +29,8 @@ def dataset_file(base, name: str, key: str) -> pathlib.Path:
     """
     if not isinstance(name, str) or not name:
         raise DataError(key, f"expected a file name (relative to the dataset's folder), got {show(name)}")
+    if "\0" in name:
+        raise DataError(key, "a file name cannot hold a NUL character")
     pure = pathlib.PurePath(name)
     if pure.is_absolute():
         raise DataError(key, f"{show(name)} is an absolute path: a dataset names only files inside its "

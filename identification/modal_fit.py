@@ -197,7 +197,7 @@ def parse(section: dict, base: pathlib.Path) -> Problem:
     per = _strings(section, "per_configuration", False)
     for p in per:
         if p not in paths:
-            raise DataError("modal.per_configuration", f"{p!r} is not among modal.parameters")
+            raise DataError("modal.per_configuration", f"{show(p)} is not among modal.parameters")
     confs = section.get("configuration")
     if not isinstance(confs, list) or not confs:
         raise DataError("modal.configuration", "missing: add [[modal.configuration]] tables")
@@ -220,7 +220,7 @@ def parse(section: dict, base: pathlib.Path) -> Problem:
     sigma = None if sigma is None else number(section, "frequency_std_hz", "modal", positive=True)
     it = section.get("max_iterations", 50)
     if isinstance(it, bool) or not isinstance(it, int) or it < 1:
-        raise DataError("modal.max_iterations", f"must be a positive integer, got {it!r}")
+        raise DataError("modal.max_iterations", f"must be a positive integer, got {show(it)}")
     return Problem(configurations, paths, per, sigma, it)
 
 
@@ -293,7 +293,7 @@ def match(freqs, labels, modes: list[Measured], conf_key: str = "") -> np.ndarra
         cand = _candidates(labels, m)
         if not cand:
             kinds = sorted({lab for lab in labels if lab != "rigid body"}, key=labels.index)[:8]
-            raise DataError(m.key, f"no model mode labelled {m.label!r}"
+            raise DataError(m.key, f"no model mode labelled {show(m.label)}"
                             f"{' in span ' + m.span if m.span else ''} (model modes: {'; '.join(kinds)} ...)")
         k = min(cand, key=lambda c: abs(freqs[c] - m.frequency_hz))
         if abs(freqs[k] - m.frequency_hz) > MATCH_RTOL * m.frequency_hz:

@@ -67,6 +67,7 @@ import numpy as np
 import optax
 
 import beltjax  # noqa: F401  (float64)
+from beltjax.tomltable import show
 from identification.data import DataError, dataset_file, number, read_csv
 
 #: largest accepted RMS of a sine fit's residual, as a share of the signal's oscillating RMS
@@ -176,7 +177,7 @@ def _string(table: dict, name: str, key: str) -> str:
     if v is None:
         raise DataError(f"{key}.{name}", "missing")
     if not isinstance(v, str) or not v.strip():
-        raise DataError(f"{key}.{name}", f"must be a file name (string), got {v!r}")
+        raise DataError(f"{key}.{name}", f"must be a file name (string), got {show(v)}")
     return v
 
 
