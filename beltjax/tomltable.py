@@ -220,12 +220,16 @@ class Reader:
 class Table:
     """A TOML table being read: checked for unknown keys, then typed getters by key.
 
+    The top-level table (``key`` "") is first checked whole by :func:`check_document`.
+
     A getter returns ``default`` for a missing key unless ``required`` (then it fails).
     """
 
     def __init__(self, data, key: str, allowed, reader: Reader):
         if not isinstance(data, dict):
             reader.fail(key or reader.style.top, f"expected a table, got {describe(data)}")
+        if not key:  # a whole document (also one given as a dict, not read from a file): its bounds
+            check_document(data, reader.fail)
         self.data, self.key, self.allowed, self.reader = data, key, allowed, reader
         for k in data:
             if k not in allowed:

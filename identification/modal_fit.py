@@ -53,7 +53,7 @@ import numpy as np
 
 from beltjax import drive, drive_modal, parameters, statics
 from beltjax.scene import Scene, SceneError, load_scene
-from beltjax.tomltable import show
+from beltjax.tomltable import check_document, show
 from identification.data import DataError, dataset_file, number
 
 #: candidates within this relative distance of the chosen one form its repeated group
@@ -99,6 +99,10 @@ class Configuration:
 
 
 # --------------------------------------------------------------------------- reading
+
+
+def _fail(key: str, message: str):
+    raise DataError(key, f"{key}: {message}")
 
 
 def _parse_mode(m, key: str) -> Measured | None:
@@ -188,6 +192,7 @@ def parse(section: dict, base: pathlib.Path) -> Problem:
     """The ``[modal]`` section of a dataset (see the module docstring); :class:`DataError` if bad."""
     if not isinstance(section, dict):
         raise DataError("modal", "must be a table")
+    check_document(section, _fail, key="modal")  # bounds of every value, also for a section given as a dict
     unknown = set(section) - _KEYS
     if unknown:
         raise DataError(f"modal.{sorted(unknown)[0]}", f"unknown key (use {', '.join(sorted(_KEYS))})")
