@@ -198,20 +198,25 @@ def loads_toml(text: str, source: str, fail: Fail = _raise) -> dict:
 # --------------------------------------------------------------------------- the scan before parsing
 
 _TOKEN = re.compile(
-    r'''(?P<s>"""(?:\\.|[^\\])*?"""|\'\'\'.*?\'\'\'|"(?:\\.|[^"\\\n])*"?|'[^'\n]*'?)'''
-    r'''|(?P<c>\#[^\n]*)|(?P<n>\n)|(?P<w>[ \t\r]+)|(?P<p>[\[\]{}=.,])|(?P<b>[^\s\[\]{}=.,#"']+)''',
-    re.S,
+    r'(?P<s>"""[^"\\]*(?:(?:\\[\s\S]|"(?!""))[^"\\]*)*"""'  # multi-line basic string
+    r"|'''[^']*(?:'(?!'')[^']*)*'''"                          # multi-line literal string
+    r'|"[^"\\\n]*(?:\\.[^"\\\n]*)*"?'                         # basic string (to the line's end if open)
+    r"|'[^'\n]*'?)"                                           # literal string
+    r"|(?P<c>#[^\n]*)|(?P<n>\n)|(?P<p>[\[\]{}=])"
+    r"""|(?P<r>[^\[\]{}="'#\n]+)"""                           # a run of the rest: keys, numbers, commas
 )
+_LONG = re.compile(r"[^\s,]{%d,}" % (MAX_NUMBER_CHARS + 1))
 
 
 def shape_problem(text: str) -> tuple[str, str] | None:
     """(key, message) for TOML ``text`` that tomllib cannot parse in bounded stack and time, else None.
 
-    A token scan (strings and comments skipped) that refuses arrays or inline tables nested
-    more than :data:`MAX_NESTING` deep, a dotted key or table header of more than
-    :data:`MAX_KEY_PARTS` parts and a number of more than :data:`MAX_NUMBER_CHARS` characters.
-    ``key`` is the key being read (table header + key, shortened), "" when none.  The scan does
-    not validate TOML (tomllib does); it only bounds these three things.
+    A token scan (strings and comments skipped; a run of numbers, commas and spaces is one token)
+    that refuses arrays or inline tables nested more than :data:`MAX_NESTING` deep, a dotted key
+    or table header of more than :data:`MAX_KEY_PARTS` parts and a number of more than
+    :data:`MAX_NUMBER_CHARS` characters.  ``key`` is the key being read (table header + key,
+    shortened), "" when none.  The scan does not validate TOML (tomllib does); it only bounds
+    these three things.
     """
     table, name = "", []        # the current [table] and the key (parts) being read or valued
     stack: list[str] = []       # open "[" / "{" of the value being read
@@ -221,9 +226,12 @@ def shape_problem(text: str) -> tuple[str, str] | None:
     def where() -> str:
         return tomltable.show_key(".".join(x for x in (table, ".".join(name)) if x))
 
+    def too_many() -> tuple[str, str]:
+        return where(), f"a dotted key of more than {MAX_KEY_PARTS} parts (line {line})"
+
     for m in _TOKEN.finditer(text):
         kind, tok = m.lastgroup, m.group()
-        if kind in ("w", "c"):
+        if kind == "c":
             continue
         if kind == "n":
             line += 1
@@ -232,17 +240,24 @@ def shape_problem(text: str) -> tuple[str, str] | None:
             continue
         if kind == "s":
             line += tok.count("\n")
+        elif kind == "r" and tok.isspace():
+            continue
         if state == "start":
-            header, state, parts = tok == "[", "key", 1
+            header, state, parts, name = tok == "[", "key", 1, []
             if header:
-                table, name = "", []
+                table = ""
                 continue
-            name = []
         if state in ("key", "ikey"):
-            if tok == ".":
-                parts += 1
+            if kind == "r":
+                if state == "key" and len(name) < 8:
+                    name += [x.strip()[:40] for x in tok.split(".", 8)[:8] if x.strip()]
+                parts += tok.count(".")
                 if parts > MAX_KEY_PARTS:
-                    return where(), f"a dotted key of more than {MAX_KEY_PARTS} parts (line {line})"
+                    return too_many()
+                continue
+            if kind == "s":
+                if state == "key" and len(name) < 8:
+                    name.append(tok.strip("\"'")[:40])
                 continue
             if header and tok == "[":
                 continue
@@ -251,10 +266,6 @@ def shape_problem(text: str) -> tuple[str, str] | None:
                 continue
             if tok == "=":
                 state = "value"
-                continue
-            if kind in ("b", "s"):
-                if state == "key" and len(name) < 8:
-                    name.append(tok[:40] if kind == "b" else tok.strip("\"'")[:40])
                 continue
             state = "value"  # not a key: malformed, tomllib says where
         if tok in ("[", "{"):
@@ -266,9 +277,13 @@ def shape_problem(text: str) -> tuple[str, str] | None:
         elif tok in ("]", "}"):
             if stack:
                 stack.pop()
-        elif tok == "," and stack and stack[-1] == "{":
-            state, parts = "ikey", 1
-        elif kind == "b" and len(tok) > MAX_NUMBER_CHARS:
-            return where(), (f"a value written with {len(tok)} characters, more than the limit of "
-                             f"{MAX_NUMBER_CHARS} (line {line})")
+        elif kind == "r":
+            long = _LONG.search(tok)
+            if long:
+                return where(), (f"a value written with {len(long.group())} characters, more than the limit of "
+                                 f"{MAX_NUMBER_CHARS} (line {line})")
+            if stack and stack[-1] == "{" and "," in tok:  # an inline table's next key
+                state, parts = "ikey", 1 + tok.rsplit(",", 1)[1].count(".")
+                if parts > MAX_KEY_PARTS:
+                    return too_many()
     return None
