@@ -113,7 +113,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax import drive, drive_modal, parameters, statics, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, loads_scene
 from beltjax.tomltable import describe
@@ -348,19 +348,9 @@ def parse(spec: dict, scene: Scene) -> Problem:
 
 
 def load(path, scene: Scene) -> Problem:
-    """Read and validate an optimisation file (TOML); :class:`OptimizeError` names the file or key."""
-    p = str(path)
-    try:
-        with open(p, "rb") as f:
-            spec = tomllib.load(f)
-    except FileNotFoundError:
-        raise OptimizeError("optimisation file not found", p) from None
-    except IsADirectoryError:
-        raise OptimizeError("is a directory, not an optimisation file", p) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise OptimizeError(f"malformed TOML: {exc}", p) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise OptimizeError(f"cannot read: {exc}", p) from None
+    """Read and validate an optimisation file (TOML, read by :mod:`beltjax.textfile`: a regular
+    file of bounded size); :class:`OptimizeError` names the file or key."""
+    spec = textfile.load_toml(str(path), "optimisation", textfile.keyed(_raise))
     return parse(spec, scene)
 
 
@@ -1164,7 +1154,7 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     if src.is_file():
         head = (f"# optimised by beltjax optimize ({spec_path}): "
                 + ", ".join(f"{p} {a:.6g} -> {b:.6g}" for p, a, b in zip(res.paths, res.x0, res.x)) + "\n")
-        text = head + edit_scene_text(src.read_text(), scene, changes)
+        text = head + edit_scene_text(textfile.read_text(src, "scene"), scene, changes)  # no byte-order mark
         _verify_scene_text(text, scene, changes)
         (out / "optimized_scene.toml").write_text(text)
         files.append("optimized_scene.toml")

@@ -110,7 +110,6 @@ import os
 import sys
 import threading
 import time
-import tomllib
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -120,7 +119,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax import drive, drive_modal, parameters, statics, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.tomltable import describe
@@ -414,21 +413,10 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
 
 
 def load_spec(path: str | os.PathLike) -> Spec:
-    """Read and validate a sweep file (TOML); raises :class:`SweepError` (one line)."""
+    """Read and validate a sweep file (TOML, read by :mod:`beltjax.textfile`: a regular file of
+    bounded size); raises :class:`SweepError` (one line)."""
     p = os.fspath(path)
-    try:
-        with open(p, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise SweepError(p, "sweep file not found") from None
-    except IsADirectoryError:
-        raise SweepError(p, "is a directory, not a sweep file") from None
-    except tomllib.TOMLDecodeError as e:
-        raise SweepError(p, f"malformed TOML: {e}") from None
-    except UnicodeDecodeError as e:
-        raise SweepError(p, f"not a UTF-8 text file ({e.reason})") from None
-    except OSError as e:
-        raise SweepError(p, f"cannot read: {e.strerror or e}") from None
+    data = textfile.load_toml(p, "sweep", textfile.keyed(_raise))
     return parse_spec(data, source=p)
 
 

@@ -67,7 +67,8 @@ import numpy as np
 import optax
 
 import beltjax  # noqa: F401  (float64)
-from identification.data import DataError, number, read_csv
+from beltjax.tomltable import show
+from identification.data import DataError, dataset_file, number, read_csv
 
 #: largest accepted RMS of a sine fit's residual, as a share of the signal's oscillating RMS
 MAX_RESIDUAL_SHARE = 0.2
@@ -176,7 +177,7 @@ def _string(table: dict, name: str, key: str) -> str:
     if v is None:
         raise DataError(f"{key}.{name}", "missing")
     if not isinstance(v, str) or not v.strip():
-        raise DataError(f"{key}.{name}", f"must be a file name (string), got {v!r}")
+        raise DataError(f"{key}.{name}", f"must be a file name (string), got {show(v)}")
     return v
 
 
@@ -191,7 +192,7 @@ def read_record(table, i: int, base: pathlib.Path, key: str) -> Record:
     name = _string(table, "file", rkey)
     f = number(table, "frequency_hz", rkey, positive=True)
     fkey = f"{rkey}.file"
-    data = read_csv(pathlib.Path(base) / name, COLUMNS, fkey, min_rows=5)
+    data = read_csv(dataset_file(base, name, fkey), COLUMNS, fkey, min_rows=5)
     t, x, F = data["time_s"], data["displacement_m"], data["force_N"]
     fname = pathlib.Path(name).name
     dt = np.diff(t)

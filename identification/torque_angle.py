@@ -56,7 +56,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.data import DataError, number, read_csv
+from beltjax.tomltable import show
+from identification.data import DataError, dataset_file, number, read_csv
 
 __all__ = ["TorqueAngleFit", "fit_torque_angle", "branch_directions", "torque_model", "KEYS"]
 
@@ -340,7 +341,7 @@ class TorqueAngleFit:
 def _choice(section: dict, name: str, key: str, options: tuple[str, ...]) -> str:
     v = section.get(name, options[0])
     if v not in options:
-        raise DataError(f"{key}.{name}", f"must be one of {', '.join(map(repr, options))}, got {v!r}")
+        raise DataError(f"{key}.{name}", f"must be one of {', '.join(map(repr, options))}, got {show(v)}")
     return v
 
 
@@ -358,14 +359,14 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     fname = section.get("file")
     if not isinstance(fname, str) or not fname:
         raise DataError(f"{key}.file", "missing (a CSV file with columns angle_deg, torque_Nm)")
-    path = pathlib.Path(base) / fname
+    path = dataset_file(base, fname, f"{key}.file")
     torque_sign = _choice(section, "torque_sign", key, ("spring", "applied"))
     sense = _choice(section, "angle_sense", key, ("ccw", "cw"))
     friction = _choice(section, "friction", key, ("constant", "linear"))
     offset = number(section, "angle_offset_deg", key, default=0.0)
     dcol = section.get("direction_column")
     if dcol is not None and (not isinstance(dcol, str) or not dcol):
-        raise DataError(f"{key}.direction_column", f"must be a column name, got {dcol!r}")
+        raise DataError(f"{key}.direction_column", f"must be a column name, got {show(dcol)}")
     columns = ["angle_deg", "torque_Nm"] + ([dcol] if dcol else [])
     data = read_csv(path, columns, f"{key} ({fname})", min_rows=MIN_ROWS)
     s = 1.0 if sense == "ccw" else -1.0
@@ -381,7 +382,7 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     if dcol:
         raw = data[dcol]
         if not np.all(np.isin(raw, (-1.0, 0.0, 1.0))):
-            raise DataError(f"{key}.direction_column", f"column {dcol!r} must hold only -1, 0 or +1")
+            raise DataError(f"{key}.direction_column", f"column {show(dcol)} must hold only -1, 0 or +1")
         d = (s * raw).astype(int)
         used = d != 0
     else:
