@@ -484,6 +484,9 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     max_steps = steps_per_chunk if fixed else scene.simulation.max_steps
 
     wall0 = time.perf_counter()
+    from beltjax.progress import Reporter, bar
+
+    reporter = Reporter()  # progress on stderr
     inst, qi0, qd0 = initial_state(scene)
     # the compiled integrator and outputs do not depend on the initial-state table
     scene = dataclasses.replace(scene, initial=Initial())
@@ -527,10 +530,9 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         if progress:
             done = min(ts[-1], t_end)
             el = time.perf_counter() - wall0
-            bar = "#" * int(30 * done / t_end)
-            print(f"\r  simulate [{bar:<30}] t = {done:7.3f} / {t_end:g} s  ({el:6.1f} s)", end="", file=sys.stderr)
+            reporter.update(f"  simulate {bar(done / t_end)} t = {done:7.3f} / {t_end:g} s  ({el:6.1f} s)")
     if progress:
-        print(file=sys.stderr)
+        reporter.finish()
     wall = time.perf_counter() - wall0
     t = np.concatenate(ts_all)
     ys = np.concatenate(ys_all)

@@ -289,16 +289,13 @@ class ImpulseFit:
     def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
         """Write ``<key>_<record>.png`` per record in directory ``out``: data and fit against time,
         and their amplitude spectra with the fitted natural frequencies."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from beltjax.plotting import literal, save, subplots
 
         out = pathlib.Path(out)
         out.mkdir(parents=True, exist_ok=True)
         paths = []
         for r in self.records:
-            fig, (ax, axs) = plt.subplots(2, 1, figsize=(8, 7))
+            fig, (ax, axs) = subplots(2, 1, figsize=(8, 7))
             c = r.offset or 0.0
             ax.plot(r.t, r.y - c, "-", lw=0.8, color="0.5", label="data")
             label = f"fit ({r.modes} mode{'s' if r.modes > 1 else ''})"
@@ -306,7 +303,7 @@ class ImpulseFit:
             ax.plot(r.t, r.y - r.fitted, "-", lw=0.6, color="C0", alpha=0.8, label="residual")
             ax.set_xlabel("time [s]")
             ax.set_ylabel(f"response - offset ({c:.6g})" if r.offset is not None else "response")
-            ax.set_title(f"{r.name} ({r.file})")
+            ax.set_title(f"{literal(r.name, 60)} ({literal(r.file, 60)})")
             ax.legend(fontsize=8)
             ax.grid(alpha=0.3)
             dt = 1.0 / r.sample_rate_hz
@@ -326,10 +323,8 @@ class ImpulseFit:
             axs.set_ylabel("amplitude (Hann)")
             axs.legend(fontsize=8)
             axs.grid(alpha=0.3, which="both")
-            fig.tight_layout()
             path = out / f"{self.key.replace('.', '_')}_{_safe(r.name)}.png"
-            fig.savefig(path, dpi=110)
-            plt.close(fig)
+            save(fig, path, dpi=110)
             paths.append(path)
         return paths
 

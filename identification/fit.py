@@ -78,6 +78,8 @@ def run(path: pathlib.Path, out: pathlib.Path) -> int:
         files += res.plot(out)
     (out / "fit.json").write_text(json.dumps(report, indent=2))
     (out / "fitted_parameters.toml").write_text("\n\n".join(blocks) + "\n")
-    print(f"\nwrote {out / 'fit.json'}, {out / 'fitted_parameters.toml'}"
-          + "".join(f", {f}" for f in files))
+    from beltjax import outputs
+
+    print()
+    outputs.wrote([out / "fit.json", out / "fitted_parameters.toml", *files])
     return 0

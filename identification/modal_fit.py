@@ -429,37 +429,30 @@ class ModalFit:
 
     def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
         """modal_fit_residuals.png (residual bars per mode) and modal_fit_loss.png (convergence)."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from beltjax.plotting import literal, save, subplots
 
         files = []
-        fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(self.modes) + 2), 4))
+        fig, ax = subplots(figsize=(max(6.0, 0.35 * len(self.modes) + 2), 4))
         x = np.arange(len(self.modes))
         before = [m["model_before_hz"] - m["measured_hz"] for m in self.modes]
         after = [m["residual_hz"] for m in self.modes]
         ax.bar(x - 0.2, before, 0.4, label="start", color="0.7")
         ax.bar(x + 0.2, after, 0.4, label="fitted", color="C0")
         ax.axhline(0, color="k", lw=0.8)
-        ax.set_xticks(x, [f"{m['configuration']}: {m['label']}" for m in self.modes], rotation=70, ha="right",
-                      fontsize=7)
+        ax.set_xticks(x, [literal(f"{m['configuration']}: {m['label']}", 60) for m in self.modes], rotation=70,
+                      ha="right", fontsize=7)
         ax.set_ylabel("model - measured [Hz]")
         ax.set_title("Modal fit: frequency residual per mode")
         ax.legend()
-        fig.tight_layout()
         files.append(out / "modal_fit_residuals.png")
-        fig.savefig(files[-1], dpi=120)
-        plt.close(fig)
-        fig, ax = plt.subplots(figsize=(5, 3.5))
+        save(fig, files[-1], dpi=120)
+        fig, ax = subplots(figsize=(5, 3.5))
         ax.semilogy(np.arange(len(self.loss_history)), self.loss_history, marker=".")
         ax.set_xlabel("Levenberg-Marquardt iteration")
         ax.set_ylabel("loss")
         ax.set_title("Modal fit: convergence")
-        fig.tight_layout()
         files.append(out / "modal_fit_loss.png")
-        fig.savefig(files[-1], dpi=120)
-        plt.close(fig)
+        save(fig, files[-1], dpi=120)
         return files
 
 
@@ -530,6 +523,9 @@ def _least_squares(res, jac):
     ~1 s per iteration and converges in under 10.  The tensile fit uses optax, where its model
     is cheap and the starts are many."""
     def run(x0, args, max_iter: int, progress: bool = False, check=None):
+        from beltjax.progress import Reporter
+
+        reporter = Reporter()  # progress on stderr
         x = np.asarray(x0, dtype=float)
         if check is not None:
             check(np.asarray(jac(x, *args)))
@@ -553,11 +549,13 @@ def _least_squares(res, jac):
                     break
             hist.append(0.5 * float(r @ r))
             if progress:
-                print(f"  LM {it:3d}  loss {hist[-1]:.6g}  step {np.max(np.abs(dx)):.2e}", flush=True)
+                reporter.update(f"modal fit: LM {it:3d}  loss {hist[-1]:.6g}  step {np.max(np.abs(dx)):.2e}")
             # converged, or stalled: a measured mode's matched model mode (fixed by its index in
             # the sorted spectrum) crossed another one; the caller matches again from here
             if np.max(np.abs(dx)) < 1e-9 or hist[-2] - hist[-1] <= STALL_RTOL * hist[-2]:
                 break
+        if progress:
+            reporter.finish()
         return jnp.asarray(x), hist, it
 
     return run
@@ -614,7 +612,9 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
         Ws, fms, mask, slots = _pad(groups, confs, Wlist)
 
         if progress:
-            print(f"modal fit: round {rounds}, {len(lay.names)} values, {m_total} modes", flush=True)
+            from beltjax.progress import message
+
+            message(f"modal fit: round {rounds}, {len(lay.names)} values, {m_total} modes")
         x, hist, n_it = minimise(x, (Ws, fms, sig0), problem.max_iterations, progress,
                                  check=lambda J: _identifiability(J[mask] * _unit_scale(x, lay), lay.names))
         iterations += n_it

@@ -280,15 +280,12 @@ class TorqueAngleFit:
     def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
         """Write ``<key>.png`` in directory ``out``: the loop (data by branch, points left out,
         fitted branches and spring line) and the local half-widths against the angle."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from beltjax.plotting import literal, save, subplots
 
         out = pathlib.Path(out)
         out.mkdir(parents=True, exist_ok=True)
         th, T, d, u = self.angle_deg, self.torque_Nm, self.direction, self.used
-        fig, (ax, axb) = plt.subplots(2, 1, figsize=(7.5, 7), height_ratios=[3, 1.3], sharex=True)
+        fig, (ax, axb) = subplots(2, 1, figsize=(7.5, 7), height_ratios=[3, 1.3], sharex=True)
         ax.plot(th[u & (d < 0)], T[u & (d < 0)], ".", ms=3, color="C3", label="angle falling")
         ax.plot(th[u & (d > 0)], T[u & (d > 0)], ".", ms=3, color="C0", label="angle rising")
         if np.any(~u):
@@ -300,7 +297,7 @@ class TorqueAngleFit:
                 label=f"spring: k = {self.spring_stiffness_Nm_per_rad:.4g} N m/rad, "
                 f"theta_0 = {self.spring_preload_deg:.4g} deg")
         ax.set_ylabel("moment, spring's sense [N m]")
-        ax.set_title(f"torque-angle loop ({self.file})")
+        ax.set_title(f"torque-angle loop ({literal(self.file, 80)})")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
         loc = self.friction_band_local
@@ -312,10 +309,8 @@ class TorqueAngleFit:
         axb.set_ylabel("half-width [N m]")
         axb.legend(fontsize=8)
         axb.grid(alpha=0.3)
-        fig.tight_layout()
         path = out / f"{self.key.replace('.', '_')}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        save(fig, path, dpi=110)
         return [path]
 
     def scene_block(self) -> str:
