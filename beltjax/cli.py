@@ -483,7 +483,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     mo = sub.add_parser("modal", help="natural frequencies and mode shapes of a drive")
     mo.add_argument("scene", help="scene file (TOML)")
-    mo.add_argument("--modes", type=_modes, default=20, help="modes reported in the table and modal.json (default 20)")
+    mo.add_argument("--modes", type=_modes, default=20,
+                    help="modes reported in the table and modal.json, and drawn in modes.png (its flexible ones, "
+                         "at most 24) (default 20)")
     mo.add_argument("--rpm", type=_number("rpm", True), default=None,
                     help="drive pulley speed [rpm] (default: the scene's speed_rpm)")
     mo.add_argument("--out", default="out", help="output directory (default ./out)")

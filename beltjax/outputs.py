@@ -41,14 +41,15 @@ def _why(exc: OSError) -> str:
 
 
 def _existing_ancestor(path: pathlib.Path) -> pathlib.Path:
-    """The nearest existing folder at or above ``path`` (an InputError if it is a file)."""
-    p = path.absolute()
-    for q in (p, *p.parents):
+    """The nearest existing folder at or above ``path`` (as given, relative or not); an
+    InputError when that is not a folder."""
+    for q in (path, *path.parents):
         if q.exists() or q.is_symlink():
             if not q.is_dir():
-                raise _error(path, "it is a file" if q == p else f"{str(q)!r} is a file, not a directory")
+                what = "a file" if q.is_file() else "not a directory"
+                raise _error(path, f"it is {what}" if q == path else f"{str(q)!r} is {what}")
             return q
-    return pathlib.Path(p.anchor)
+    return pathlib.Path(path.anchor or ".")
 
 
 def _staging_parent(target: pathlib.Path) -> pathlib.Path:
@@ -56,15 +57,14 @@ def _staging_parent(target: pathlib.Path) -> pathlib.Path:
     above it), or inside the target when it exists and that folder is on another file system
     (a mount point) or not writable."""
     here = _existing_ancestor(target)
-    p = target.absolute()
-    if here != p:  # the target does not exist yet
+    if here != target:  # the target does not exist yet
         return here
-    up = _existing_ancestor(p.parent)
+    up = _existing_ancestor(target.parent)
     try:
-        same = up.stat().st_dev == p.stat().st_dev
+        same = up.stat().st_dev == target.stat().st_dev
     except OSError:
         same = False
-    return up if up != p and same and os.access(up, os.W_OK | os.X_OK) else p
+    return up if up != target and same and os.access(up, os.W_OK | os.X_OK) else target
 
 
 class Stage:

@@ -223,6 +223,10 @@ CASES = [
          "tensioner.spring_stiffness: must be > 0"),
     case("out-is-a-file", "`statics scene.toml --out taken` (`taken` is a file)", "output directory is a file",
          lambda d: ["statics", T2, "--out", write(d, "taken", "x")], "--out: cannot create directory"),
+    case("out-below-a-file", "`statics scene.toml --out taken/sub` (`taken` is a file)",
+         "output directory below a file",
+         lambda d: ["statics", T2, "--out", str(pathlib.Path(write(d, "taken", "x")) / "sub")],
+         "--out: cannot create directory", "taken' is a file"),
     # ---------------------------------------------------------------- modal
     case("modal-huge-mesh", "`modal`: `elements_per_span = 1000000`", "mesh that cannot fit in memory",
          lambda d: ["modal", scene(d, ("elements_per_span = 16", "elements_per_span = 1000000"))],
