@@ -30,7 +30,7 @@ HOSTILE = [r"$\foo$", "$x^$", r"\n", "%s", "{}", "{0} %d %%", "a\\$b$", "_hidden
 
 #: the crank and the alternator renamed, and a description, all hostile
 CRANK = r"$\foo$ %s {} {0} \n ü-Ω 発電機"
-ALTERNATOR = "_$x^$ " + "long name " * 30
+ALTERNATOR = "_$x^$ " + "long name " * 9  # 96 characters: scene names are at most 100
 DESCRIPTION = r"$x^$ 50% {} \\ a real\nnewline"
 
 
