@@ -965,7 +965,7 @@ def _axis_label(path: str) -> str:
 
 
 def _column_label(name: str) -> str:
-    """The quantity and unit of an output column (``tension_<span>_N`` -> ``tension [N]``)."""
+    """The quantity and unit of an output column (``tension_<span>_N`` -> ``span tension [N]``)."""
     for prefix, what in (("tension_", "span tension"), ("hub_", "hub force")):
         if name.startswith(prefix) and name.endswith("_N"):
             return f"{what} [N]"
