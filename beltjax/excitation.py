@@ -28,7 +28,10 @@ histories and their spectra at a false, lower frequency.
 * every solver: refuses a harmonic forcing at or above the outputs' Nyquist frequency
   ``1 / (2 output_dt)``, naming the output interval needed;
 * adaptive solvers: gives the largest step (``dtmax``, s) that keeps the step-size controller
-  from stepping over a forcing: a quarter of the shortest period, half the shortest window.
+  from stepping over a harmonic forcing (a quarter of its shortest period), and
+  :func:`jump_times` are the load windows' edges, where the controller must stop (else,
+  from a quiet drive, a step of 10 ms steps over a 0.2 ms torque pulse as if it were not
+  there: tests/test_excitation.py).
 
 Accuracy of generalized-alpha on a forced oscillator (``benchmarks/bench_forcing_resolution.py``:
 x'' + 2 zeta w_max x' + w0^2 x = sin(w t), zeta = 0.1, steady state, rho_inf 0.9 and 1):
@@ -45,6 +48,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive
@@ -56,10 +60,8 @@ MIN_STEPS_PER_PERIOD = 20
 MIN_WINDOW_STEPS = 2
 #: a load window shorter than this many fixed steps gives a warning (its impulse is resolved to 1 / n)
 WARN_WINDOW_STEPS = 10
-#: largest adaptive step: this fraction of the shortest forcing period ...
+#: largest adaptive step: this fraction of the shortest forcing period
 ADAPTIVE_PERIOD_FRACTION = 0.25
-#: ... and of the shortest load window
-ADAPTIVE_WINDOW_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -191,10 +193,16 @@ def check(scene: Scene, t_end: float, dt: float, output_dt: float, fixed: bool) 
                 continue
             if fixed and n < WARN_WINDOW_STEPS:
                 res.warnings.append(dict(key=fc.key, what=fc.what, window_s=w, steps=n, dt_s=dt))
-            limits.append(ADAPTIVE_WINDOW_FRACTION * w)
     if not fixed and limits:
         res.dtmax = min(limits)
     return res
+
+
+def jump_times(scene: Scene):
+    """The start and end times (s) of every load's window, as an array for an adaptive
+    step-size controller's ``jump_ts`` (pure: traced under jit), or None without loads."""
+    ts = [t for ld in (*scene.torques, *scene.span_loads) for t in (ld.t_start_s, ld.t_end_s) if t is not None]
+    return jnp.stack([jnp.asarray(t, dtype=float) for t in ts]) if ts else None
 
 
 def after_run(scene: Scene, speeds_rpm, dt: float, output_dt: float, fixed: bool) -> list[dict]:

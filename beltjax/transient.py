@@ -65,9 +65,9 @@ class TransientError(BeltjaxError):
 JACOBIAN_EVERY = 200
 #: most output samples of one run (memory: every channel is kept)
 MAX_OUTPUT_SAMPLES = 2_000_000
-#: most time steps of one run (fixed step: t_end / dt; adaptive: t_end / its largest step): a
-#: minute of the rotational model (about 3 us a step), hours of the hybrid one (0.25-0.65 ms a
-#: step with 8-16 elements per span: benchmarks/README.md, simulate() table)
+#: most time steps of one fixed-step run (t_end / dt): a minute of the rotational model (about
+#: 3 us a step), hours of the hybrid one (0.25-0.65 ms a step with 8-16 elements per span:
+#: benchmarks/README.md, simulate() table)
 MAX_STEPS = 20_000_000
 #: Newton tolerance of the implicit steps: relative to max|y|, and absolute (units of y)
 NEWTON_RTOL, NEWTON_ATOL = 1e-9, 1e-9
@@ -192,6 +192,9 @@ def _solver(scene: Scene, dtmax=None):
         )
         return solver, diffrax.ConstantStepSize()
     ctrl = diffrax.PIDController(rtol=sim.rtol, atol=sim.atol, dtmax=dtmax)
+    jumps = excitation.jump_times(scene)  # the load windows' edges: stopped at, never stepped over
+    if jumps is not None:
+        ctrl = diffrax.ClipStepSizeController(ctrl, jump_ts=jumps)
     if name == "tsit5":
         return diffrax.Tsit5(), ctrl
     if name == "dopri8":
@@ -473,12 +476,10 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     forcing = excitation.check(scene, t_end, dt, out_dt, fixed)
     if forcing.refused:
         raise TransientError(forcing.refused[0])
-    step = dt if fixed else forcing.dtmax
-    if step is not None and t_end / step > MAX_STEPS:
+    if fixed and t_end / dt > MAX_STEPS:  # (an adaptive run's steps are bounded by simulation.max_steps)
         raise TransientError(
-            f"t_end: {t_end:g} s needs {math.ceil(t_end / step - 1e-9)} steps of {step:.3g} s "
-            f"({'dt' if fixed else 'the largest step that resolves the forcing'}), more than the limit of {MAX_STEPS} "
-            "(about a minute of the rotational model, hours of the hybrid one): shorten the run or raise the step")
+            f"t_end: {t_end:g} s needs {math.ceil(t_end / dt - 1e-9)} steps of dt = {dt:.3g} s, more than the limit of "
+            f"{MAX_STEPS} (about a minute of the rotational model, hours of the hybrid one): shorten the run or raise dt")
     dtmax = None if forcing.dtmax is None else jnp.asarray(forcing.dtmax)
     per_chunk = max(1, int(round((chunk_s or max(0.05, min(1.0, t_end / 10))) / out_dt)))
     n_chunks = -(-n_out // per_chunk)
