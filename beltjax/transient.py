@@ -247,7 +247,8 @@ def _start(scene: Scene, inst, y0, t0, dt0, dtmax=None):
 
 @eqx.filter_jit
 def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states, dtmax=None):
-    """:func:`_solve_chunk` of the scene's vector field and solver (:func:`_solver`; dtmax: largest adaptive step, s)."""
+    """:func:`_solve_chunk` of the scene's vector field and solver (:func:`_solver`; dtmax:
+    largest adaptive step, s)."""
     return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, ts, dt0, max_steps,
                         states)
 
@@ -459,7 +460,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     fixed = scene.simulation.solver == "generalized_alpha"
     if fixed:
         if out_dt < dt * (1 - 1e-9):
-            key = "output_dt" if output_dt is not None or scene.simulation.output_dt_s is None else "simulation.output_dt_s"
+            from_scene = output_dt is None and scene.simulation.output_dt_s is not None
+            key = "simulation.output_dt_s" if from_scene else "output_dt"
             raise TransientError(
                 f"{key}: {out_dt:.4g} s is below the time step dt = {dt:.4g} s of the fixed-step solver "
                 f"{scene.simulation.solver}, which gives outputs only at its steps: give an output interval >= dt "
@@ -478,8 +480,9 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         raise TransientError(forcing.refused[0])
     if fixed and t_end / dt > MAX_STEPS:  # (an adaptive run's steps are bounded by simulation.max_steps)
         raise TransientError(
-            f"t_end: {t_end:g} s needs {math.ceil(t_end / dt - 1e-9)} steps of dt = {dt:.3g} s, more than the limit of "
-            f"{MAX_STEPS} (about a minute of the rotational model, hours of the hybrid one): shorten the run or raise dt")
+            f"t_end: {t_end:g} s needs {math.ceil(t_end / dt - 1e-9)} steps of dt = {dt:.3g} s, more than the "
+            f"limit of {MAX_STEPS} (about a minute of the rotational model, hours of the hybrid one): shorten the "
+            "run or raise dt")
     dtmax = None if forcing.dtmax is None else jnp.asarray(forcing.dtmax)
     per_chunk = max(1, int(round((chunk_s or max(0.05, min(1.0, t_end / 10))) / out_dt)))
     n_chunks = -(-n_out // per_chunk)
@@ -569,6 +572,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         installation_tension_N=float(inst.tension),
         slack_spans=slack_spans(t, chans["span_tensions_N"], cols["span_tensions_N"]),
         supercritical_spans=supercritical_spans(t, pulley_forces, cols["span_forces_N"], chans["belt_speed_m_s"]),
-        excitation_warnings=forcing.warnings + excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed),
+        excitation_warnings=[*forcing.warnings,
+                             *excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed)],
     )
     return SimulationResult(t=t, channels=chans, columns=cols, meta=meta, y=ys)
