@@ -143,7 +143,7 @@ STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched",
           "not_converged", "span_slack", "non_finite", "supercritical")
 REASONS = {
     "ok": "solved",
-    "unstable": "past a critical speed: no natural frequencies (statics kept)",
+    "unstable": "the linearised drive has modes that grow: no natural frequencies (statics kept)",
     "invalid_value": "a parameter value outside its range (e.g. a non-positive stiffness, radius or mass)",
     "belt_slack": "belt too long to fit: it would hang slack",
     "belt_overstretched": f"belt too short to fit: more than {100 * statics.MAX_INSTALL_STRAIN:g} % stretch",
