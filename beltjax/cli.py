@@ -261,8 +261,10 @@ def cmd_statics(args) -> int:
 def modal_table(m, n_modes: int) -> str:
     """Mode number, frequency and label of the first n_modes modes of a ModalResult."""
     if not m.stable:
-        lines = [f"UNSTABLE at belt speed {m.speed_m_s:g} m/s (past the critical speed); unstable eigenvalues [1/s]:"]
-        lines += [f"  {lam.real:+.4g} {lam.imag:+.4g}j" for lam in m.unstable_eigenvalues]
+        lines = [f"UNSTABLE at belt speed {m.speed_m_s:g} m/s: {m.unstable_reason}"]
+        if len(m.unstable_eigenvalues):
+            lines.append("unstable eigenvalues [1/s]:")
+            lines += [f"  {lam.real:+.4g} {lam.imag:+.4g}j" for lam in m.unstable_eigenvalues]
         return "\n".join(lines)
     k = min(n_modes, len(m.frequencies_hz))
     lines = [f"{'mode':>4}  {'frequency [Hz]':>14}  label"]
@@ -412,8 +414,8 @@ def cmd_simulate(args) -> int:
                  settle_fraction=args.settle)
     print(f"transient of {title}")
     print(simulation_table(res, summary))
-    for record in res.meta["slack_spans"]:
-        print(transient.slack_warning(record))
+    for line in transient.run_warnings(res.meta):  # slack spans, spans past the critical speed, forcing
+        print(line)
     return 0
 
 
@@ -504,11 +506,13 @@ def build_parser() -> argparse.ArgumentParser:
     si = sub.add_parser("simulate", help="transient of a drive (time histories, spectra)")
     si.add_argument("scene", help="scene file (TOML)")
     si.add_argument("--t-end", dest="t_end", type=_number("t-end", True, False), required=True,
-                    help="simulated time [s]")
+                    help="simulated time [s] (at most 20 million time steps)")
     si.add_argument("--dt", type=_number("dt", True, False), default=None,
-                    help="time step [s] (default: the scene's [simulation] dt_s, else 1e-4)")
+                    help="time step [s] (default: the scene's [simulation] dt_s, else 1e-4); a fixed step must "
+                         "sample every forcing frequency more than twice a period (a warning below 20 times)")
     si.add_argument("--output-dt", dest="output_dt", type=_number("output-dt", True, False), default=None,
-                    help="output interval [s] (default 5e-4 hybrid, 1e-3 rotational)")
+                    help="output interval [s] (default 5e-4 hybrid, 1e-3 rotational); not below a fixed step, "
+                         "and below half the period of every forcing")
     si.add_argument("--settle", type=_fraction, default=0.0,
                     help="fraction of the run left out of the summary and spectra (start-up), default 0")
     si.add_argument("--out", default="out", help="output directory (default ./out)")

@@ -90,8 +90,9 @@ A case without an admissible state is never silently wrong: its outputs are NaN
 and its ``status`` names the cause (:data:`STATUS`): a value outside the
 parameter's range, a belt that cannot be fitted (slack, over-stretched, no
 tensioner balance), statics not converged (retried with speed stepping), a span
-gone slack, non-finite outputs; ``unstable`` (past a critical speed) keeps the
-statics and has NaN frequencies.  The run summary counts them by cause.
+gone slack, non-finite outputs, ``supercritical`` (the drive speed past the
+critical belt speed: a span's force on the pulleys <= 0, :mod:`beltjax.critical`);
+``unstable`` (modes that grow) keeps the statics and has NaN frequencies.  The run summary counts them by cause.
 
 Command line: ``beltjax sweep SCENE SWEEP.toml [--backend local|dask] --out DIR``
 writes ``sweep.csv`` (one row per case: case, parameters, outputs, status),
@@ -119,7 +120,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, parameters, statics, textfile, tomltable
+from beltjax import critical, drive, drive_modal, parameters, statics, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.tomltable import describe
@@ -138,10 +139,10 @@ SPACINGS = ("linear", "log")
 
 #: case status codes (index = the integer code) and their meaning
 STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched", "no_arm_balance",
-          "not_converged", "span_slack", "non_finite")
+          "not_converged", "span_slack", "non_finite", "supercritical")
 REASONS = {
     "ok": "solved",
-    "unstable": "past a critical speed: no natural frequencies (statics kept)",
+    "unstable": "the linearised drive has modes that grow: no natural frequencies (statics kept)",
     "invalid_value": "a parameter value outside its range (e.g. a non-positive stiffness, radius or mass)",
     "belt_slack": "belt too long to fit: it would hang slack",
     "belt_overstretched": f"belt too short to fit: more than {100 * statics.MAX_INSTALL_STRAIN:g} % stretch",
@@ -149,6 +150,7 @@ REASONS = {
     "not_converged": "no static equilibrium found (Newton, also with speed stepping)",
     "span_slack": "a span would go slack (tension <= 0)",
     "non_finite": "non-finite outputs",
+    "supercritical": "past the critical belt speed: a span's force on the pulleys (tension less rhoA c^2 lam) <= 0",
 }
 _CODE = {s: i for i, s in enumerate(STATUS)}
 
@@ -544,8 +546,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     if sc.tensioner is not None:
         conds.insert(0, ~jnp.isfinite(inst.arm_angle))
         codes.insert(0, _CODE["no_arm_balance"])
-    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0)]
-    codes += [_CODE["not_converged"], _CODE["span_slack"]]
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
+    codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
     res: dict[str, jax.Array] = {}
     if "statics" in outputs:
         res["span_tensions_N"] = out["tensions"]
@@ -571,7 +573,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=4)
             M, G, K = drive_modal.linearise(q2, sc, inst2, vv)
             ok, f = drive_modal.frequencies_from_matrices(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
-            ok = ok & (info[0] > 0.5)
+            ok = ok & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
             return jnp.where(ok, f[:modes], jnp.nan), ok
 
         res["campbell_hz"], res["campbell_stable"] = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
