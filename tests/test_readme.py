@@ -138,3 +138,26 @@ def test_saved_examples_came_from_readme_commands(name):
     assert first.startswith("$ .venv/bin/beltjax ")
     cmd = first[2:].replace(" --out out", "")
     assert cmd.split(" --out")[0] in README, f"{name}: the README does not show {cmd!r}"
+
+
+def _marked_table(name: str) -> list[str]:
+    lines = README.splitlines()
+    start = lines.index(f"<!-- table: {name} -->")
+    end = lines.index("<!-- end table -->", start)
+    return [x for x in lines[start + 1:end] if x.strip()]
+
+
+def test_readme_bad_input_table_is_the_saved_run_of_the_robustness_rows():
+    """The README's bad-input table is benchmarks/bad_inputs_table.py's output, one row per row of
+    tests/test_robustness_inputs.py, in order."""
+    import sys
+
+    saved = (SAVED / "bad_inputs.md").read_text().splitlines()
+    assert _marked_table("bad_inputs") == [x for x in saved if x.strip()]
+    sys.path.insert(0, str(ROOT / "tests"))
+    import test_robustness_inputs as t
+
+    rows = saved[2:]
+    assert len(rows) == len(t.CASES), "re-run benchmarks/bad_inputs_table.py"
+    for case, row in zip(t.CASES, rows):
+        assert row.startswith(f"| {case.input.replace('|', chr(92) + '|')} |"), (case.id, row)
