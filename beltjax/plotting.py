@@ -303,7 +303,9 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
 def plot_campbell(result, path, title: str = "", bands=()):
     """Save a Campbell diagram (PNG): mode frequencies against drive-pulley speed, order lines, crossings.
 
-    result: a CampbellResult.  Rigid-body (0 Hz) modes are not drawn; speeds
+    result: a CampbellResult.  One colour and one legend entry per column (a tracked mode: its
+    label, and where it changes along the curve, the new label and the speed); crossings are
+    dots in their mode's colour.  Rigid-body (0 Hz) modes are not drawn; speeds
     without frequencies (``stable`` false: unstable, or no equilibrium) are shaded.
     bands: speed bands to highlight, each ``(rpm_low, rpm_high, orders, note)``: the band is
     shaded and its order lines [k x rpm/60 Hz] drawn bold inside it, with the note as a label.
@@ -317,10 +319,21 @@ def plot_campbell(result, path, title: str = "", bands=()):
     fig, ax = plt.subplots(figsize=(12, 7))
     cmap = plt.get_cmap("tab20" if len(modes) > 10 else "tab10")
     colors = {m: cmap(j % cmap.N) for j, m in enumerate(modes)}
+    changes = {}
+    for c in getattr(result, "label_changes", None) or []:
+        changes.setdefault(c["mode"] - 1, []).append(c)
+    drawn = []
     for m in modes:
         lab = result.labels[m] if m < len(result.labels) else f"mode {m + 1}"
+        lab += "".join(f" -> {c['to']} ({c['rpm']:g} rpm)" for c in changes.get(m, []))
+        # a curve on top of one already drawn (a repeated pair): dashed, so both show
+        same = next((d for d in drawn if np.array_equal(np.isfinite(F[:, d]), np.isfinite(F[:, m]))
+                     and np.allclose(F[:, d], F[:, m], rtol=1e-6, atol=1e-9, equal_nan=True)), None)
+        if same is not None:
+            lab += f" (same as {same + 1})"
+        drawn.append(m)
         ax.plot(rpm, F[:, m], color=colors[m], lw=1.6, marker="." if len(rpm) <= 12 else None,
-                label=f"{m + 1}: {lab}")
+                ls=(0, (4, 4)) if same is not None else "-", label=_wrapped(f"{m + 1}: {lab}", 60))
     # y-limit: 1.2 x the highest plotted frequency at the lowest speed with finite values
     first = next((i for i in range(len(rpm)) if np.any(np.isfinite(F[i, modes]))), None) if modes else None
     top = 1.2 * float(np.nanmax(F[first, modes])) if first is not None else 100.0
