@@ -96,6 +96,26 @@ def coordinate_blocks(scene: Scene) -> np.ndarray:
     return np.concatenate([np.repeat(np.arange(n_spans), ns), n_spans + np.repeat(np.arange(n_bodies), 3)])
 
 
+def reference_modes(scene: Scene, n_modes: int, rpm: float | None = None):
+    """The lowest ``n_modes`` modes of ``scene`` at drive-pulley speed ``rpm`` (default its own
+    speed_rpm) as curves to track other cases or speeds to: (:class:`beltjax.mode_tracking.Modes`,
+    labels), repeated pairs localised (one span each where they can be) and labelled from those
+    shapes; None when the drive is unstable there.  Raises the statics' one-line errors."""
+    scene = drive.canonical(scene)
+    v = float(drive.belt_speed(scene, rpm)) if rpm is not None else float(drive.belt_speed(scene))
+    st = statics.analyse_statics(scene, v)
+    out = drive_modal.modes_at(scene, jnp.asarray(st.qi), st.inst, v, scene.model.has("transport") and v != 0.0)
+    if not bool(out["stable"]):
+        return None
+    k = min(n_modes, drive.n_independent(scene))
+    X = np.asarray(out["shapes"])[:, :k]
+    W = np.linalg.cholesky(np.asarray(out["M"])).T @ X
+    modes = mode_tracking.mode_basis(np.asarray(out["freqs"])[:k], W, V=np.asarray(out["J"]) @ X)
+    mode_tracking.localise(modes, coordinate_blocks(scene))
+    arrays = drive_modal.label_arrays(scene, st.inst)
+    return modes, drive_modal.label_full(modes.freqs, modes.V, scene, arrays)[0]
+
+
 @dataclass
 class TrackedModes:
     """Modes tracked over speeds (see :func:`campbell_modes`): tracking (a
