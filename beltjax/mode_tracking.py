@@ -38,7 +38,9 @@ they are: the MAC ignores a mode's phase.  Then:
 
 The matching is numpy (cheap: a (curves x modes) matrix per step); the eigen-solves stay
 batched and compiled.  Use :class:`Tracker` step by step (streaming over chunks), or
-:func:`track` on stacked arrays; :func:`reported` selects the curves worth reporting.
+:func:`track` on stacked arrays; :func:`reported` selects the curves worth reporting,
+:func:`rank_masks` turns curves into per-step masks over sorted frequencies, and
+:func:`follow_labels` / :func:`label_changes` read labels along a curve.
 """
 
 from __future__ import annotations
@@ -107,13 +109,23 @@ def mode_basis(freqs, W, owner=None, V=None, rtol: float = RTOL_REPEATED) -> Mod
     ids = clusters(f, rtol)
     Wb = np.zeros((W.shape[0], len(f)), complex)
     Vb = None if V is None else np.zeros((np.shape(V)[0], len(f)), complex)
+    first = np.full(len(f), -1)  # a simple mode's columns are one complex direction: take its first
+    cols_ok = np.flatnonzero((owner >= 0) & (owner < len(f)))[::-1]
+    first[owner[cols_ok]] = cols_ok
     for c in np.unique(ids):
         members = np.flatnonzero(ids == c)
-        cols = np.flatnonzero(np.isin(owner, members))
-        U, s, Vh = np.linalg.svd(W[:, cols], full_matrices=False)
-        p = len(members)
-        C = Vh.conj().T[:, :p] / np.where(s[:p] > 0, s[:p], 1.0)  # (cols, p): W[:, cols] @ C = U[:, :p]
-        Wb[:, members] = U[:, :p]
+        if len(members) == 1:
+            j = first[members[0]]
+            norm = np.linalg.norm(W[:, j])
+            C = np.array([[1.0 / norm if norm > 0 else 1.0]])
+            cols = [j]
+            Wb[:, members] = W[:, cols] * C[0, 0]
+        else:
+            cols = np.flatnonzero(np.isin(owner, members))
+            U, s, Vh = np.linalg.svd(W[:, cols], full_matrices=False)
+            p = len(members)
+            C = Vh.conj().T[:, :p] / np.where(s[:p] > 0, s[:p], 1.0)  # (cols, p): W[:, cols] @ C = U[:, :p]
+            Wb[:, members] = U[:, :p]
         if V is not None:
             Vb[:, members] = np.asarray(V)[:, cols] @ C
     return Modes(f, Wb, ids, Vb)
@@ -284,6 +296,18 @@ def reported(tracking: Tracking, n_report: int, rtol: float = RTOL_REPEATED) -> 
     first = np.array([np.flatnonzero(np.isfinite(F[:, c]))[0] for c in curves], int)
     at = F[first, curves]
     return curves[np.lexsort((at, first))]
+
+
+def rank_masks(tracking: Tracking, curves, n: int) -> np.ndarray:
+    """(S, n) bool: at each step, which of that step's modes (by index in its ascending order, the
+    order of a compiled solve's frequencies) lie on ``curves`` -- e.g. the modes an objective
+    watches, picked once by label, as per-step masks over sorted, differentiable frequencies."""
+    out = np.zeros((tracking.index.shape[0], n), bool)
+    for c in np.atleast_1d(curves):
+        idx = tracking.index[:, c]
+        ok = (idx >= 0) & (idx < n)
+        out[np.flatnonzero(ok), idx[ok]] = True
+    return out
 
 
 def label_key(label: str) -> tuple:

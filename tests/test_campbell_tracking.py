@@ -57,6 +57,9 @@ def test_crossing_modes_keep_their_curves():
     t, F = _steps(states)
     assert np.any(np.diff(np.argsort([st[0] for st in states], axis=1)[:, 0]))  # sorted order swaps
     np.testing.assert_allclose(t.freqs[:, 0], 10 + s)  # curve 0: mode A throughout
+    masks = mode_tracking.rank_masks(t, [0], 3)  # where mode A sits in each step's sorted order
+    np.testing.assert_array_equal(np.flatnonzero(masks[:, 1]), np.flatnonzero(10 + s > 20 - s))
+    np.testing.assert_allclose(F[masks], 10 + s)
     np.testing.assert_allclose(t.freqs[:, 1], 20 - s)
     np.testing.assert_allclose(t.freqs[:, 2], 40.0)
     assert t.freqs.shape[1] == 3 and np.nanmin(t.mac) > 1 - 1e-12
