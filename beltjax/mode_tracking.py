@@ -101,34 +101,31 @@ class Modes:
 def mode_basis(freqs, W, owner=None, V=None, rtol: float = RTOL_REPEATED) -> Modes:
     """:class:`Modes` from a compiled eigen-solve: freqs (k,) Hz ascending; W (n, c) whitened
     shapes whose column j belongs to mode owner[j] (default: one column per mode); V (n_full, c)
-    full-coordinate shapes or None.  Each cluster of p repeated modes gets the p leading left
-    singular vectors of its columns (an M-orthonormal basis of its eigenspace); V follows."""
+    full-coordinate shapes or None.  A simple mode's columns are one complex direction: its
+    first, normalised.  Each cluster of p repeated modes gets the p leading left singular
+    vectors of its columns (an M-orthonormal basis of its eigenspace); V follows."""
     f = np.asarray(freqs, float)
     W = np.asarray(W)
     owner = np.arange(W.shape[1]) if owner is None else np.asarray(owner)
     ids = clusters(f, rtol)
-    Wb = np.zeros((W.shape[0], len(f)), complex)
-    Vb = None if V is None else np.zeros((np.shape(V)[0], len(f)), complex)
-    first = np.full(len(f), -1)  # a simple mode's columns are one complex direction: take its first
+    first = np.full(len(f), -1)
     cols_ok = np.flatnonzero((owner >= 0) & (owner < len(f)))[::-1]
     first[owner[cols_ok]] = cols_ok
-    for c in np.unique(ids):
+    norm = np.linalg.norm(W[:, first], axis=0)
+    scale = 1.0 / np.where(norm > 0, norm, 1.0)
+    Wb = W[:, first] * scale
+    Vb = None if V is None else np.asarray(V)[:, first] * scale
+    size = np.bincount(ids)
+    for c in np.flatnonzero(size > 1):
         members = np.flatnonzero(ids == c)
-        if len(members) == 1:
-            j = first[members[0]]
-            norm = np.linalg.norm(W[:, j])
-            C = np.array([[1.0 / norm if norm > 0 else 1.0]])
-            cols = [j]
-            Wb[:, members] = W[:, cols] * C[0, 0]
-        else:
-            cols = np.flatnonzero(np.isin(owner, members))
-            U, s, Vh = np.linalg.svd(W[:, cols], full_matrices=False)
-            p = len(members)
-            C = Vh.conj().T[:, :p] / np.where(s[:p] > 0, s[:p], 1.0)  # (cols, p): W[:, cols] @ C = U[:, :p]
-            Wb[:, members] = U[:, :p]
-        if V is not None:
+        cols = np.flatnonzero(np.isin(owner, members))
+        U, sv, Vh = np.linalg.svd(W[:, cols], full_matrices=False)
+        p = len(members)
+        C = Vh.conj().T[:, :p] / np.where(sv[:p] > 0, sv[:p], 1.0)  # (cols, p): W[:, cols] @ C = U[:, :p]
+        Wb[:, members] = U[:, :p]
+        if Vb is not None:
             Vb[:, members] = np.asarray(V)[:, cols] @ C
-    return Modes(f, Wb, ids, Vb)
+    return Modes(f, Wb.astype(complex), ids, None if Vb is None else Vb.astype(complex))
 
 
 def localise(modes: Modes, blocks: np.ndarray) -> None:
@@ -162,24 +159,19 @@ class Tracker:
 
     def __init__(self, reference: Modes | None = None, min_mac: float = MIN_MAC):
         self.min_mac = min_mac
-        self.shapes: list[np.ndarray] = []  # last unit whitened shape of each curve
-        self.age: list[int] = []  # steps since each curve was last seen
+        self.P: np.ndarray | None = None  # (n, curves): last unit whitened shape of each curve
+        self.age = np.zeros(0, int)  # steps since each curve was last seen
         if reference is not None:
-            for j in range(len(reference.freqs)):
-                self._new(reference.W[:, j])
+            self.P = np.array(reference.W, complex)
+            self.age = np.zeros(self.P.shape[1], int)
 
     @property
     def n_curves(self) -> int:
-        return len(self.shapes)
-
-    def _new(self, w) -> int:
-        self.shapes.append(np.array(w))
-        self.age.append(0)
-        return len(self.shapes) - 1
+        return 0 if self.P is None else self.P.shape[1]
 
     def skip(self) -> None:
         """A step without modes (unstable, no equilibrium): every curve ages."""
-        self.age = [a + 1 for a in self.age]
+        self.age = self.age + 1
 
     def step(self, modes: Modes) -> tuple[np.ndarray, np.ndarray]:
         """Match ``modes`` (one step) to the curves; new curves for unmatched modes."""
@@ -187,39 +179,32 @@ class Tracker:
         index = np.full(self.n_curves, -1)
         mac = np.full(self.n_curves, np.nan)
         if self.n_curves:
-            P = np.stack(self.shapes, axis=1)
+            P = self.P
             single = np.abs(P.conj().T @ modes.W) ** 2  # (curves, modes)
-            sub = np.zeros_like(single)
-            for c in np.unique(modes.cluster):
-                members = modes.cluster == c
-                sub[:, members] = single[:, members].sum(axis=1, keepdims=True)
-            score = sub - _AGE_PENALTY * np.asarray(self.age)[:, None]
-            rows, cols = linear_sum_assignment(score, maximize=True)
+            starts = np.flatnonzero(np.r_[True, np.diff(modes.cluster) != 0])  # clusters are contiguous
+            sub = np.add.reduceat(single, starts, axis=1)[:, np.searchsorted(starts, np.arange(m), "right") - 1]
+            rows, cols = linear_sum_assignment(sub - _AGE_PENALTY * self.age[:, None], maximize=True)
             keep = sub[rows, cols] >= self.min_mac
             rows, cols = rows[keep], cols[keep]
-            for c in np.unique(modes.cluster[cols]):
+            index[rows] = cols
+            size = np.bincount(modes.cluster)
+            for c in np.unique(modes.cluster[cols][size[modes.cluster[cols]] > 1]):
+                # a repeated mode: rotate the eigenspace's basis to the matched curves' shapes
                 members = np.flatnonzero(modes.cluster == c)
                 curves = rows[modes.cluster[cols] == c]
-                if len(members) > 1:  # rotate the eigenspace's basis to the matched curves' shapes
-                    U, _, Vh = np.linalg.svd(modes.W[:, members].conj().T @ P[:, curves])
-                    a = len(curves)
-                    modes.rotate(members, np.concatenate([U[:, :a] @ Vh, U[:, a:]], axis=1))
-                for i, curve in enumerate(curves):
-                    index[curve] = members[i]
-            for curve, j in zip(rows, index[rows]):
-                mac[curve] = float(np.abs(np.vdot(P[:, curve], modes.W[:, j])) ** 2)
-        seen = set(index[index >= 0].tolist())
-        for j in range(m):
-            if j not in seen:
-                self._new(modes.W[:, j])
-        index = np.concatenate([index, [j for j in range(m) if j not in seen]]).astype(int)
-        mac = np.concatenate([mac, np.full(len(index) - len(mac), np.nan)])
-        for curve, j in enumerate(index):
-            if j >= 0:
-                self.shapes[curve] = np.array(modes.W[:, j])
-                self.age[curve] = 0
-            else:
-                self.age[curve] += 1
+                U, _, Vh = np.linalg.svd(modes.W[:, members].conj().T @ P[:, curves])
+                a = len(curves)
+                modes.rotate(members, np.concatenate([U[:, :a] @ Vh, U[:, a:]], axis=1))
+                index[curves] = members[:a]
+            mac[rows] = np.abs(np.sum(P[:, rows].conj() * modes.W[:, index[rows]], axis=0)) ** 2
+        new = np.setdiff1d(np.arange(m), index[index >= 0])
+        index = np.concatenate([index, new]).astype(int)
+        mac = np.concatenate([mac, np.full(len(new), np.nan)])
+        P = modes.W[:, new] if self.P is None else np.concatenate([self.P, modes.W[:, new]], axis=1)
+        seen = index >= 0
+        P[:, seen] = modes.W[:, index[seen]]
+        self.P = P
+        self.age = np.where(seen, 0, np.concatenate([self.age, np.zeros(len(new), int)]) + 1)
         return index, mac
 
 
