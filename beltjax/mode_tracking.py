@@ -210,9 +210,9 @@ class Tracker:
 
 @dataclass
 class Tracking:
-    """Tracked curves over S steps: index (S, c) mode of curve c at each step (-1: not seen),
-    freqs (S, c) Hz (NaN: not seen), mac (S, c) MAC with the curve's previous shape (NaN at a
-    curve's first step and where not seen), rank-ordered ``modes`` per step as given."""
+    """Tracked curves over S steps: index (S, c) mode of curve c at each step (its index in that
+    step's ascending frequencies; -1: not seen), freqs (S, c) Hz (NaN: not seen), mac (S, c) MAC
+    with the curve's previous shape (NaN at a curve's first step and where not seen)."""
 
     index: np.ndarray
     freqs: np.ndarray

@@ -109,6 +109,7 @@ def test_campbell_command(tmp_path, cache):
         assert c["curve_label"] == data["labels"][c["mode"] - 1] and "transverse" in c["label"]
     assert (out / "campbell.png").stat().st_size > 10_000
     assert "crossings" in proc.stdout and "campbell.json" in proc.stdout
+    assert "followed across speeds by its shape" in proc.stdout and "sorted" not in proc.stdout
     assert "campbell: 5/5 speeds" in proc.stderr  # progress goes to stderr
 
 
