@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, mode_tracking, statics
+from beltjax import critical, drive, drive_modal, mode_tracking, statics
 from beltjax.scene import Scene
 
 DEFAULT_ORDERS = (1.0, 2.0, 3.0)
@@ -40,6 +40,7 @@ def _batch(scene: Scene, speeds, n_modes: int):
         qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
         M, G, K = drive_modal.linearise(qi, scene, inst, v)
         stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyro, drive_modal.rigid_mode(scene, inst))
+        stable = stable & ~critical.supercritical(scene, qi, inst, v)  # past the critical speed: unstable
         return f[:n_modes], stable, info[0] > 0.5
 
     return jax.vmap(one)(speeds)
@@ -49,7 +50,8 @@ def campbell_frequencies(scene: Scene, rpm, n_modes: int = 20, chunk: int = 32, 
     """Frequencies (Hz) of the lowest ``n_modes`` modes at each drive-pulley speed.
 
     rpm: (n,) speeds of the drive pulley (rpm).  Returns (freqs (n, n_modes) with
-    NaN where the drive is unstable or the statics failed, stable (n,) bool, converged (n,) bool).
+    NaN where the drive is unstable, past its critical speed (:mod:`beltjax.critical`) or the
+    statics failed, stable (n,) bool (False past the critical speed), converged (n,) bool).
     progress: optional callable(done, total) called after each chunk.
     """
     scene = drive.canonical(scene)
@@ -82,6 +84,7 @@ def _tracked_batch(scene: Scene, speeds, k: int):
     def one(v):
         qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
         out = drive_modal.tracking_shapes(scene, qi, inst, v, k, gyro)
+        out["stable"] = out["stable"] & ~critical.supercritical(scene, qi, inst, v)  # past the critical speed
         out["converged"] = info[0] > 0.5
         return out
 
@@ -294,7 +297,7 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
     pair is kept whole), each curve labelled from its shape at every speed.
     """
     rpm = np.sort(np.asarray(rpm, dtype=float))
-    statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])))
+    statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])), allow_supercritical=True)
     tm = campbell_modes(scene, rpm, n_modes, progress=progress)
     t = tm.tracking
     curves = mode_tracking.reported(t, n_modes)

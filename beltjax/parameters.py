@@ -126,3 +126,19 @@ def set_values(scene: Scene, values: Mapping[str, object]) -> Scene:
     for path, value in values.items():
         scene = set_value(scene, path, value)
     return scene
+
+
+_UNITS = {"EA": "N", "EI": "N m^2", "rhoA": "kg/m", "CA": "N s", "static_tension": "N", "length": "m",
+          "center": "m", "cm_offset": "m", "pivot": "m", "radius": "m", "pulley_radius": "m", "arm_length": "m",
+          "arm_cm_distance": "m", "mass": "kg", "arm_mass": "kg", "pulley_mass": "kg", "inertia": "kg m^2",
+          "arm_inertia": "kg m^2", "pulley_inertia": "kg m^2", "speed_rpm": "rpm", "acceleration_rpm_per_s": "rpm/s",
+          "fluctuation_amplitude_deg": "deg", "fluctuation_frequency_hz": "Hz", "bearing_damping": "N m s/rad",
+          "spring_stiffness": "N m/rad", "spring_preload_deg": "deg", "damping": "N m s/rad"}
+
+
+def unit(path: str) -> str:
+    """The unit of the parameter at ``path`` as the scene file gives it (e.g. "m", "N m^2"),
+    "" for a path that names no known parameter."""
+    parts = str(path).split(".")
+    key = parts[-2] if len(parts) >= 2 and parts[-1] in _COMPONENTS else parts[-1]
+    return _UNITS.get(key, "")
