@@ -1158,7 +1158,7 @@ def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.
     alpha = max(0.05, min(0.8, 8.0 / max(F.shape[0], 1)))
     over = coinciding([F[:, :, m] for m in flex])
     labels = result.get("campbell_mode_labels") or []
-    names = [f"f{m + 1}" + (f": {literal(labels[m], 60)}" if m < len(labels) else "") for m in flex]
+    names = [f"mode {m + 1}" + (f": {literal(labels[m], 60)}" if m < len(labels) else "") for m in flex]
     for j, m in enumerate(flex):
         ls, note = overlay_style(over, names, j)
         for i in range(F.shape[0]):
