@@ -311,7 +311,9 @@ def _panels_note(m, n_modes: int) -> str:
 
 
 def campbell_summary(c, n_rows: int = 12) -> str:
-    """Frequencies at the lowest and highest speeds, and the crossings, of a CampbellResult."""
+    """Frequencies at the lowest and highest speeds of each tracked mode, the crossings (each
+    with the label of the mode that crosses, read from its shape there) and the label changes
+    (veering) of a CampbellResult."""
     import numpy as np
 
     F = np.asarray(c.frequencies_hz, float)
@@ -332,8 +334,10 @@ def campbell_summary(c, n_rows: int = 12) -> str:
         lines.append(f"UNSTABLE at {int((unstable & ~failed).sum())} of {len(c.rpm)} speeds (from {bad.min():g} rpm): "
                      "past a critical speed, no natural frequencies")
     k = min(n_rows, F.shape[1])
-    lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  "
-              f"label (at {r0:g} rpm; modes are sorted by frequency, not tracked)"]
+    tracked = getattr(c, "tracked", False)
+    head = ("label (each mode followed across speeds by its shape)" if tracked
+            else f"label (at {r0:g} rpm; modes sorted by frequency)")
+    lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  {head}"]
     fmt = lambda x: f"{x:>14.2f}" if np.isfinite(x) else f"{'-':>14}"  # noqa: E731
     for i in range(k):
         lines.append(f"{i + 1:>4}  {fmt(F[0, i])}  {fmt(F[-1, i])}  {c.labels[i]}")
@@ -347,6 +351,18 @@ def campbell_summary(c, n_rows: int = 12) -> str:
                          f"mode {x['mode']} ({x['label']})")
     else:
         lines.append("no crossings in this speed range")
+    changes = getattr(c, "label_changes", None) or []
+    if changes:
+        lines.append(f"{len(changes)} label changes along a mode (veering: two modes exchange their shapes):")
+        for x in changes:
+            lines.append(f"  mode {x['mode']} between {x['after_rpm']:g} and {x['rpm']:g} rpm: {x['from']} -> {x['to']}")
+    uncertain = c.uncertain() if tracked else []
+    if uncertain:
+        from beltjax.mode_tracking import UNCERTAIN_MAC
+
+        where = sorted({u["rpm"] for u in uncertain})
+        lines.append(f"tracking uncertain at {len(where)} speeds (a mode's shape changes much within one step, "
+                     f"MAC < {UNCERTAIN_MAC:g}; from {where[0]:g} rpm): a finer --rpm step resolves it")
     return "\n".join(lines)
 
 

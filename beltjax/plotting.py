@@ -429,7 +429,9 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
 def plot_campbell(result, path, title: str = "", bands=()):
     """Save a Campbell diagram (PNG): mode frequencies against drive-pulley speed, order lines, crossings.
 
-    result: a CampbellResult.  Rigid-body (0 Hz) modes are not drawn; speeds
+    result: a CampbellResult.  One colour and one legend entry per column (a tracked mode: its
+    label, and where it changes along the curve, the new label and the speed); crossings are
+    dots in their mode's colour.  Rigid-body (0 Hz) modes are not drawn; speeds
     without frequencies (``stable`` false: unstable, or no equilibrium) are shaded.
     bands: speed bands to highlight, each ``(rpm_low, rpm_high, orders, note)``: the band is
     shaded and its order lines [k x rpm/60 Hz] drawn bold inside it, with the note as a label.
@@ -443,7 +445,11 @@ def plot_campbell(result, path, title: str = "", bands=()):
     fig, ax = subplots(figsize=(12, 7))
     colour = colormap(len(modes))
     colors = {m: colour(j) for j, m in enumerate(modes)}
-    labels = [literal(f"{m + 1}: {result.labels[m] if m < len(result.labels) else f'mode {m + 1}'}", 70)
+    changes = {}
+    for c in getattr(result, "label_changes", None) or []:
+        changes.setdefault(c["mode"] - 1, []).append(c)
+    labels = [literal(f"{m + 1}: {result.labels[m] if m < len(result.labels) else f'mode {m + 1}'}"
+                      + "".join(f" -> {c['to']} ({c['rpm']:g} rpm)" for c in changes.get(m, [])), 90)
               for m in modes]
     over = coinciding([F[:, m] for m in modes])
     for j, m in enumerate(modes):

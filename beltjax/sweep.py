@@ -79,12 +79,25 @@ statics
     spring moment (tensioner drives), Newton convergence.  At the drive pulley's
     ``speed_rpm`` (steady motion), as ``beltjax statics``.
 modal
-    the lowest ``modes`` natural frequencies (Hz, sorted per case, not tracked
-    across cases: a crossing of two modes swaps columns) and a stability flag.
-    Labels are those of the nominal scene (labelling every case is not batched).
+    natural frequencies (Hz) of the nominal scene's lowest ``modes`` modes, followed
+    into every case by their shapes, and a stability flag: column ``f<k>_hz`` is the
+    nominal's k-th mode (its label in ``sweep.json``, ``nominal_modes``) in every row,
+    wherever it sits in the case's own order, so a column keeps its mode where two
+    modes cross (a transverse mode rising through a rotational one as the tension
+    grows).  Each case's modes come from the compiled eigen-solve with their
+    mass-weighted shapes (a few more modes than kept, so that a mode that moved up is
+    still found) and are matched to the nominal's by MAC and an optimal assignment
+    (:mod:`beltjax.mode_tracking`; a repeated pair as a subspace); ``mode_match`` is a
+    case's lowest MAC (near 1: every column holds the nominal's mode; low: a mode has
+    changed shape, e.g. two modes mixed near a veering; a column whose mode is not found
+    is NaN and counts 0).  Tracking to the nominal rather than along a grid axis works for
+    random (tolerance) studies too and needs no order of the cases.  Without modes of
+    the nominal (its statics fail, or it is unstable) the columns are the lowest
+    ``modes`` sorted per case, and ``sweep.json`` says so.
 campbell
-    frequencies of the lowest ``modes`` modes at each ``rpm`` speed per case (as
-    ``beltjax campbell``).
+    the same modes' frequencies at each ``rpm`` speed per case: matched to the nominal's
+    at the lowest speed, then followed along the case's speeds by their shapes (as
+    ``beltjax campbell``); ``campbell_mode_match`` is a case's lowest MAC.
 
 A case without an admissible state is never silently wrong: its outputs are NaN
 and its ``status`` names the cause (:data:`STATUS`): a value outside the
@@ -120,7 +133,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, drive_modal, parameters, statics, textfile, tomltable
+from beltjax import critical, drive, drive_modal, mode_tracking, parameters, statics, sweep_modes, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.tomltable import describe
@@ -521,10 +534,12 @@ class _Options:
     modes: int
     gyro: bool
     steps: int = 1
+    track: int = 0
 
 
 def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] = ("statics", "modal"),
-                 modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1) -> dict[str, jax.Array]:
+                 modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1,
+                 track: int = 0) -> dict[str, jax.Array]:
     """Outputs of one case: ``scene`` with ``values`` {path: scalar} set (pure JAX: jit, vmap, grad).
 
     outputs, modes, gyroscopic (solve the gyroscopic problem of the moving belt) and steps
@@ -533,7 +548,10 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     span_tensions_N (N), hub_forces_N (N, magnitudes), installation_tension_N (N),
     belt_length_m (m), tensioner_angle_deg (deg), spring_moment_Nm (N m), converged;
     frequencies_hz (Hz, NaN when unstable), stable; campbell_hz (Hz, per ``rpm`` speed),
-    campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt).
+    campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt).  With
+    ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
+    tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
+    campbell_owner (the frequencies are then the lowest ``track``, sorted).
     """
     sc = parameters.set_values(scene, values)
     inst = statics.install(sc)
@@ -561,9 +579,15 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     nr = drive_modal.n_rigid_modes(sc)
     stable = jnp.asarray(True)
     if "modal" in outputs:
-        M, G, K = drive_modal.linearise(qi, sc, inst, v)
-        stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
-        res["frequencies_hz"] = jnp.where(stable, f[:modes], jnp.nan)
+        if track:
+            t = drive_modal.tracking_shapes(sc, qi, inst, v, track, gyroscopic, full=False)
+            stable, f = t["stable"], t["freqs"]
+            res["modal_W"], res["modal_owner"] = t["W"], t["owner"]
+        else:
+            M, G, K = drive_modal.linearise(qi, sc, inst, v)
+            stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
+            f = f[:modes]
+        res["frequencies_hz"] = jnp.where(stable, f, jnp.nan)
         res["stable"] = stable
     if "campbell" in outputs:
         transport = sc.model.has("transport")
@@ -571,13 +595,21 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         def at(r):
             vv = drive.belt_speed(sc, r)
             q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=4)
+            if track:
+                t = drive_modal.tracking_shapes(sc, q2, inst2, vv, track, transport, full=False)
+                ok = t["stable"] & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
+                return jnp.where(ok, t["freqs"], jnp.nan), ok, t["W"], t["owner"]
             M, G, K = drive_modal.linearise(q2, sc, inst2, vv)
             ok, f = drive_modal.frequencies_from_matrices(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
             ok = ok & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
             return jnp.where(ok, f[:modes], jnp.nan), ok
 
-        res["campbell_hz"], res["campbell_stable"] = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
-    finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in ("frequencies_hz", "campbell_hz")]
+        got = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
+        res["campbell_hz"], res["campbell_stable"] = got[:2]
+        if track:
+            res["campbell_W"], res["campbell_owner"] = got[2:]
+    skip = ("frequencies_hz", "campbell_hz", *sweep_modes.SHAPE_KEYS)
+    finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in skip]
     conds += [~jnp.all(jnp.asarray([*finite, True])), ~stable]
     codes += [_CODE["non_finite"], _CODE["unstable"]]
     res["code"] = jnp.select(conds, [jnp.asarray(c) for c in codes], jnp.asarray(_CODE["ok"]))
@@ -585,7 +617,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
 
 
 def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options) -> dict:
-    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps)
+    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track)
 
 
 def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
@@ -741,11 +773,11 @@ def _dask_client(address):
 
 
 def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int,
-               devices: tuple | None, progress) -> list[dict]:
-    """The chunks one after the other in this process."""
+               devices: tuple | None, progress, post=lambda r: r) -> list[dict]:
+    """The chunks one after the other in this process (``post`` applied to each chunk's outputs)."""
     results, done, n = [], 0, sum(len(next(iter(c.values()))) for c in chunks)
     for c in chunks:
-        results.append(_run_chunk(scene, c, rpm, opts, size, devices))
+        results.append(post(_run_chunk(scene, c, rpm, opts, size, devices)))
         done += len(next(iter(c.values())))
         if progress is not None:
             progress(done, n)
@@ -753,8 +785,9 @@ def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options
 
 
 def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int, dask,
-              progress) -> list[dict]:
-    """The chunks as tasks on a dask.distributed cluster (results in chunk order)."""
+              progress, post=lambda r: r) -> list[dict]:
+    """The chunks as tasks on a dask.distributed cluster (results in chunk order; ``post`` applied
+    to each chunk's outputs as it arrives)."""
     from dask.distributed import as_completed
 
     client, owned = _dask_client(dask)
@@ -768,7 +801,7 @@ def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options,
         done = 0
         for fut in as_completed(futs):
             i = index[fut.key]
-            results[i] = fut.result()
+            results[i] = post(fut.result())
             done += len(next(iter(chunks[i].values())))
             if progress is not None:
                 progress(done, n)
@@ -783,7 +816,7 @@ def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options,
 
 def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] | list[str] = ("statics", "modal"),
              modes: int = 12, rpm=None, chunk: int | None = None, progress: Callable[[int, int], None] | None = None,
-             backend: str = "local", dask=None, devices="auto") -> dict[str, np.ndarray]:
+             backend: str = "local", dask=None, devices="auto", reference="auto") -> dict[str, np.ndarray]:
     """Evaluate a batch of cases with one compiled, vmapped function (in chunks).
 
     values: {parameter path: (n,) values} (file units, e.g. from :func:`cases`);
@@ -795,15 +828,28 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     ``BELTJAX_DASK_SCHEDULER`` address or a LocalCluster of one process per core);
     devices (local backend): shard each chunk over these JAX devices (``shard_map`` on
     the case axis; the chunk is a multiple of their number); "auto" uses every local
-    accelerator when there are several (see :func:`_devices` for CPU devices), None none.
+    accelerator when there are several (see :func:`_devices` for CPU devices), None none;
+    reference: the modes the frequency columns follow, :func:`beltjax.sweep_modes.references` ("auto": those of
+    ``scene`` itself, the nominal; None: no tracking, the lowest ``modes`` sorted per case).
+
+    Frequency columns follow modes, not ranks: column k of ``frequencies_hz`` is the nominal
+    scene's k-th mode (ascending at the nominal), found in each case by its shape (the
+    eigen-solve returns mass-whitened shapes of a few more modes than kept; each case's modes
+    are matched to the nominal's by MAC and an optimal assignment, repeated pairs as
+    subspaces: :func:`beltjax.sweep_modes.track_chunk`), so a mode keeps its column where modes cross; NaN where
+    no mode of the case matches it.  ``campbell_hz`` follows them from the lowest speed along
+    each case's speeds.  ``mode_labels`` / ``campbell_mode_labels`` name the columns (the
+    nominal's labels, from its shapes).
 
     Returns numpy arrays with the case on axis 0: ``status`` (str, :data:`STATUS`),
     ``code`` (int); statics: ``span_tensions_N`` (n, spans), ``hub_forces_N`` (n,
     route entries; magnitudes), ``installation_tension_N``, ``belt_length_m``,
     ``tensioner_angle_deg`` and ``spring_moment_Nm`` (tensioner drives), ``converged``;
-    modal: ``frequencies_hz`` (n, modes), ``stable``; campbell: ``campbell_rpm`` (S,),
-    ``campbell_hz`` (n, S, modes), ``campbell_stable`` (n, S).  Failed cases are NaN
-    in every output (unstable ones in the frequencies only).
+    modal: ``frequencies_hz`` (n, modes), ``mode_mac`` (n, modes: each column's MAC with the
+    nominal's mode), ``stable``; campbell: ``campbell_rpm`` (S,), ``campbell_hz`` (n, S,
+    modes), ``campbell_stable`` (n, S), ``campbell_mode_match`` (n,: the lowest MAC of a case's
+    tracking); and the lists ``mode_labels``, ``campbell_mode_labels`` (None: not tracked).
+    Failed cases are NaN in every output (unstable ones in the frequencies only).
     """
     outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     bad = [o for o in outputs if o not in OUTPUTS]
@@ -833,7 +879,12 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     modes = max(1, min(int(modes), drive.n_independent(scene)))
     dp = scene.route.order[drive.drive_pulley(scene)]
     moving = float(drive.belt_speed(scene)) != 0.0 or f"pulley.{dp}.speed_rpm" in values
-    opts = _Options(outputs=outputs, modes=modes, gyro=scene.model.has("transport") and moving)
+    refs, track = {}, 0
+    if reference is not None and ("modal" in outputs or "campbell" in outputs):
+        refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
+        track = mode_tracking.n_computed(modes, drive.n_independent(scene))
+    opts = _Options(outputs=outputs, modes=modes, gyro=scene.model.has("transport") and moving, track=track)
+    post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
     invalid = _invalid(values, n)
     if invalid.all():
         run_values = values
@@ -845,11 +896,15 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     size = _chunk_size(n, chunk, rpm.size, devices)
     chunks = [{k: v[sl] for k, v in run_values.items()} for sl in _slices(n, size)]
     if backend == "local":
-        results = _run_local(scene, chunks, rpm, opts, size, devices, progress)
+        results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post)
     else:
-        results = _run_dask(scene, chunks, rpm, opts, size, dask, progress)
+        results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
     out = {k: np.concatenate([r[k] for r in results]) for k in results[0]}
-    return _finish(out, invalid, rpm)
+    out = _finish(out, invalid, rpm)
+    for key, o in (("mode_labels", "modal"), ("campbell_mode_labels", "campbell")):
+        if o in outputs:
+            out[key] = list(refs[o][1]) if refs.get(o) else None
+    return out
 
 
 def _finish(out: dict[str, np.ndarray], invalid: np.ndarray, rpm: np.ndarray) -> dict[str, np.ndarray]:
@@ -876,7 +931,10 @@ def _finish(out: dict[str, np.ndarray], invalid: np.ndarray, rpm: np.ndarray) ->
 def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Per-case output columns of :func:`evaluate`'s result, tidy: ``tension_<span>_N``,
     ``hub_<entry>_N``, ``installation_tension_N``, ``belt_length_m``, ``tensioner_angle_deg``,
-    ``spring_moment_Nm``, ``converged``, ``f<k>_hz``, ``stable``, ``campbell_unstable_from_rpm``."""
+    ``spring_moment_Nm``, ``converged``, ``f<k>_hz`` (the nominal scene's k-th mode, followed
+    by its shape: see :func:`evaluate`), ``mode_match`` (the lowest MAC of a case's columns
+    with the nominal's modes, 0 where one is not found), ``stable``,
+    ``campbell_unstable_from_rpm``, ``campbell_mode_match``."""
     cols: dict[str, np.ndarray] = {}
     if "span_tensions_N" in result:
         for j, name in enumerate(drive.span_names(scene)):
@@ -889,12 +947,18 @@ def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndar
     if "frequencies_hz" in result:
         for m in range(result["frequencies_hz"].shape[1]):
             cols[f"f{m + 1}_hz"] = result["frequencies_hz"][:, m]
+        if "mode_mac" in result:
+            mac = result["mode_mac"]
+            cols["mode_match"] = np.where(np.isfinite(mac).any(axis=1),
+                                          np.min(np.where(np.isfinite(mac), mac, 0.0), axis=1), np.nan)
         cols["stable"] = result["stable"]
     if "campbell_hz" in result:
         rpm = result["campbell_rpm"]
         bad = ~result["campbell_stable"]
         first = np.where(bad.any(axis=1), rpm[np.argmax(bad, axis=1)], np.nan)
         cols["campbell_unstable_from_rpm"] = np.where(result["code"] == _CODE["ok"], first, np.nan)
+        if "campbell_mode_match" in result:
+            cols["campbell_mode_match"] = result["campbell_mode_match"]
     return cols
 
 
@@ -953,9 +1017,15 @@ def write_campbell_csv(path: Path, result: Mapping[str, np.ndarray]) -> None:
 
 
 def _flexible_columns(cols: Mapping[str, np.ndarray], k: int = 6) -> list[str]:
+    """The first ``k`` frequency columns of flexible modes, a column equal to an earlier one in every
+    case (the other mode of a repeated pair) left out."""
     names = [c for c in cols if c.startswith("f") and c.endswith("_hz")]
     flex = [c for c in names if np.any(np.isfinite(cols[c])) and np.nanmax(cols[c]) >= drive_modal.RIGID_HZ]
-    return flex[:k]
+    out: list[str] = []
+    for c in flex:
+        if not any(np.allclose(cols[c], cols[d], rtol=1e-6, equal_nan=True) for d in out):
+            out.append(c)
+    return out[:k]
 
 
 def _axis_label(path: str) -> str:
@@ -1022,7 +1092,7 @@ def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> 
             if labels and name.startswith("f") and name[1:-3].isdigit():
                 m = int(name[1:-3]) - 1
                 if m < len(labels):
-                    title = f"{literal(name, 60)} (nominal scene: {literal(labels[m], 60)})"
+                    title = f"{literal(name, 60)}: {literal(labels[m], 60)}"
             ax.set_title(title, fontsize=8)
             ax.set_xlabel(_axis_label(spec.grid[0].parameter), fontsize=8)
             ax.set_ylabel(_column_label(name), fontsize=8)
@@ -1034,7 +1104,9 @@ def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> 
             ax.set_visible(False)
         note = " (mean over the random samples; band: min-max)" if shape[-1] > 1 else ""
         if fname == "sweep_frequencies.png":
-            note += "\nf_k: the k-th frequency of each case, sorted, not tracked (a mode may change rank across cases)"
+            note += ("\nf_k: the nominal scene's k-th mode, followed into every case by its shape (a column equal to "
+                     "an earlier one in every case, a repeated pair's, is drawn once)" if labels else
+                     "\nf_k: the k-th frequency of each case, sorted (a mode may change rank across cases)")
         fig.suptitle(literal_wrapped(spec.description or "parametric sweep", 120) + note, fontsize=9)
         save(fig, path / fname, dpi=100)
         written.append(path / fname)
@@ -1074,8 +1146,9 @@ def plot_histograms(spec: Spec, cols, path: Path, labels: list[str] | None = Non
 
 
 def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.0)) -> Path:
-    """Campbell curves of every case (thin lines) with order lines (sweep_campbell.png).  A mode
-    whose curves lie on an earlier mode's in every case is drawn dashed over it, with a note."""
+    """Campbell curves of every case (thin lines) with order lines (sweep_campbell.png): one colour
+    per mode (the nominal's, followed by its shape), its label in the legend.  A mode whose
+    curves lie on an earlier mode's in every case is drawn dashed over it, with a note."""
     from beltjax.plotting import coinciding, colormap, literal, overlay_style, save, subplots
 
     rpm, F = result["campbell_rpm"], result["campbell_hz"]
@@ -1084,7 +1157,8 @@ def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.
     colour = colormap(10)
     alpha = max(0.05, min(0.8, 8.0 / max(F.shape[0], 1)))
     over = coinciding([F[:, :, m] for m in flex])
-    names = [f"mode {m + 1}" for m in flex]
+    labels = result.get("campbell_mode_labels") or []
+    names = [f"mode {m + 1}" + (f": {literal(labels[m], 60)}" if m < len(labels) else "") for m in flex]
     for j, m in enumerate(flex):
         ls, note = overlay_style(over, names, j)
         for i in range(F.shape[0]):
@@ -1134,18 +1208,6 @@ def summary_table(cols: Mapping[str, np.ndarray], stats: Mapping[str, dict], lab
     return "\n".join(lines)
 
 
-def nominal_labels(scene: Scene, modes: int) -> tuple[list[str], list[float]] | None:
-    """Labels and frequencies (Hz) of the lowest ``modes`` modes of the nominal scene, or None
-    when its modal analysis fails (labels are per case expensive: only the nominal is labelled)."""
-    try:
-        m = drive_modal.analyse_modes(scene)
-    except statics.StaticsError:
-        return None
-    if not m.stable:
-        return None
-    return list(m.labels[:modes]), [float(x) for x in m.frequencies_hz[:modes]]
-
-
 def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: Mapping[str, np.ndarray],
            nominal: tuple[list[str], list[float]] | None = None, timing: Mapping[str, Any] | None = None) -> dict:
     """sweep.json contents: the spec, the statistics of every output column, the failures by
@@ -1163,6 +1225,7 @@ def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: M
         "outputs": list(spec.outputs),
         "columns": ["case", *values, *cols, "status"],
         "nominal_modes": None if nominal is None else {"labels": nominal[0], "frequencies_hz": nominal[1]},
+        "frequency_columns": _columns_meaning(result),
         "summary": {k: statistics(v) for k, v in cols.items() if k not in ("converged", "stable")},
         "ok": int(np.sum(result["status"] == "ok")),
         "failed": int(sum(v["count"] for k, v in fails.items() if k != "unstable")),
@@ -1170,6 +1233,16 @@ def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: M
         "failures": fails,
         **(timing or {}),
     }
+
+
+def _columns_meaning(result: Mapping[str, Any]) -> str | None:
+    """What the f<k>_hz (and sweep_campbell.csv) columns hold, for sweep.json."""
+    if "frequencies_hz" not in result and "campbell_hz" not in result:
+        return None
+    if result.get("mode_labels") or result.get("campbell_mode_labels"):
+        return ("f<k>_hz: the nominal scene's k-th mode (nominal_modes), followed into every case by its shape "
+                "(mass-weighted MAC, optimal assignment; NaN: not found); mode_match: a case's lowest MAC")
+    return "f<k>_hz: the k-th lowest frequency of each case (sorted: the nominal scene has no modes to follow)"
 
 
 def plots(scene: Scene, spec: Spec, result: Mapping[str, np.ndarray], out: Path,
@@ -1206,7 +1279,10 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
           + f"; outputs {', '.join(spec.outputs)}; backend {backend}")
     if backend == "dask":
         _dask_client_check()
-    nominal = nominal_labels(scene, spec.modes) if "modal" in spec.outputs or "campbell" in spec.outputs else None
+    refs = (sweep_modes.references(scene, spec.outputs, spec.modes, spec.rpm)
+            if "modal" in spec.outputs or "campbell" in spec.outputs else {})
+    ref = refs.get("modal") if "modal" in spec.outputs else refs.get("campbell")
+    nominal = (list(ref[1]), [float(x) for x in ref[0].freqs]) if ref else None
     labels = nominal[0] if nominal else None
     t0 = time.perf_counter()
     first: list[float] = []
@@ -1218,7 +1294,7 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
         bar(done, total)
 
     result = evaluate(scene, values, spec.outputs, spec.modes, spec.rpm, chunk=spec.chunk, progress=progress,
-                      backend=backend, dask=spec.dask_scheduler)
+                      backend=backend, dask=spec.dask_scheduler, reference=refs or None)
     wall = time.perf_counter() - t0
     devices = _devices() if backend == "local" else None
     size = _chunk_size(n, spec.chunk, 0 if spec.rpm is None else len(spec.rpm), devices)
@@ -1244,7 +1320,13 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
         print(f"  {s}: {v['count']} cases ({v['reason']}); first: {', '.join(str(i) for i in v['cases'][:8])}")
     print(summary_table(cols, data["summary"], labels))
     if labels:
-        print("(labels: the modes of the nominal scene; frequencies are sorted per case, not tracked across cases)")
+        print("(f<k>: the nominal scene's k-th mode, followed into every case by its shape; mode_match: a case's "
+              "lowest MAC with the nominal's modes)")
+        low = np.asarray(cols.get("mode_match", []), float)
+        n_low = int(np.sum(low < mode_tracking.UNCERTAIN_MAC))
+        if n_low:
+            print(f"note: in {n_low} cases a mode's shape differs from the nominal's (mode_match < "
+                  f"{mode_tracking.UNCERTAIN_MAC:g}; NaN: not found): its column holds the closest mode")
     from beltjax.outputs import wrote
 
     wrote(files)  # printed here, or by the command line once the files are moved into --out
