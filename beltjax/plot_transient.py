@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from beltjax.plotting import colormap, coinciding, literal, literal_wrapped, overlay_style, save, subplots
+from beltjax import plotting
+from beltjax.plotting import colormap, coinciding, literal, literal_wrapped, overlay_style, subplots
 
 # channel -> (panel label, default unit, factor to the plotted unit, plotted unit), in the preferred order
 _SIM_CHANNELS = {
@@ -104,7 +105,7 @@ def plot_simulation(t, channels, columns, units, path, *, title=""):
     head = literal_wrapped(title, 110)
     note = f" (every {stride}th sample drawn)" if stride > 1 else ""
     fig.suptitle((head + "\n" if head else "") + f"time histories, {t.size} samples{note}", fontsize=10)
-    save(fig, path, dpi=120)
+    plotting.save(fig, path, dpi=120)
 
 
 def _envelope(f, a, max_points=_MAX_POINTS):
@@ -206,4 +207,4 @@ def plot_spectra(t, channels, columns, units, path, *, title="", fmax=None, sett
     fig.suptitle((head + "\n" if head else "")
                  + f"amplitude spectra of the last {duration:.3g} s (Hann window, trend removed; "
                  f"resolution {1.0 / max(duration, 1e-300):.3g} Hz)", fontsize=10)
-    save(fig, path, dpi=120)
+    plotting.save(fig, path, dpi=120)
