@@ -137,9 +137,20 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
     """Campbell diagram of a drive over drive-pulley speeds ``rpm`` with order lines ``orders``.
 
     Runs the statics at the lowest speed first (its one-line errors apply) and
-    labels the modes there.
+    labels the modes there.  The scene is checked as a scene file is; a speed that is NaN,
+    infinite or negative, an order that is not positive and finite, or n_modes below 1 is a
+    one-line :class:`beltjax.errors.BeltjaxError` naming the argument.
     """
-    rpm = np.sort(np.asarray(rpm, dtype=float))
+    from beltjax import validate
+    from beltjax.errors import BeltjaxError
+
+    validate.check_scene(scene)
+    rpm = np.sort(validate.speeds(rpm, "rpm", "drive.rpm"))
+    o = np.asarray(orders, dtype=float).reshape(-1) if np.ndim(orders) <= 1 else np.zeros(0)
+    if o.size == 0 or not np.all(np.isfinite(o) & (o > 0)):
+        raise BeltjaxError(f"expected positive finite excitation orders, got {orders!r}", "orders")
+    if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise BeltjaxError(f"must be an integer >= 1, got {n_modes!r}", "n_modes")
     v0 = float(drive.belt_speed(scene, rpm[0]))
     base = drive_modal.analyse_modes(scene, v0)
     f, ok, conv = campbell_frequencies(scene, rpm, n_modes, progress=progress)

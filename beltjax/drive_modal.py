@@ -343,9 +343,13 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
 
     Runs the statics first (its one-line errors apply).  At a speed with the
     ``transport`` effect the gyroscopic problem is solved; an unstable drive
-    gets ``stable=False``, its unstable eigenvalues and no frequencies.
+    gets ``stable=False``, its unstable eigenvalues and no frequencies.  The scene and the
+    speed are checked as in :func:`beltjax.statics.analyse_statics` (one-line errors).
     """
-    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
+    from beltjax import validate
+
+    validate.check_scene(scene)
+    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
     st = statics.analyse_statics(scene, v)
     gyro = scene.model.has("transport") and v != 0.0
     qi = jnp.asarray(st.qi)

@@ -361,12 +361,17 @@ def analyse_statics(scene: Scene, speed: float | None = None) -> StaticResult:
     """Static state of the drive at belt speed ``speed`` (m/s; default from speed_rpm).
 
     Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
-    Newton iteration fails even with speed stepping, or a span would go slack.
+    Newton iteration fails even with speed stepping, or a span would go slack; a scene that
+    fails the scene file's checks (:func:`beltjax.validate.check_scene`) or a speed that is
+    NaN, infinite, negative or beyond 1e4 m/s is a :class:`beltjax.errors.BeltjaxError`.
     """
+    from beltjax import validate
+
+    validate.check_scene(scene)
+    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
     scene = drive.canonical(scene)
     inst = install_compiled(scene)
     check_installation(scene, inst)
-    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
     out, (conv, it, rn) = _statics_core(scene, v)
     if not float(conv) > 0.5:
         out, (conv, it, rn) = _statics_core(scene, v, steps=8)
