@@ -68,10 +68,12 @@ def _g(x: float) -> str:
 
 
 _LEN = "m"
-_CENTRE = Field(_LEN, -1e5, 1e5, "keep the drive near the origin: float64 round-off of the tangent geometry grows with the distance")
+_CENTRE = Field(_LEN, -1e5, 1e5, "keep the drive near the origin: float64 round-off of the tangent geometry "
+                                  "grows with the distance")
 _RADIUS = Field(_LEN, 1e-4, 1e2, "from a 0.1 mm pin to a 100 m drum", ">0")
 _MASS = Field("kg", 0.0, 1e6, "heavier than any pulley or flywheel (1000 t)", ">=0")
-_INERTIA = Field("kg m^2", 1e-12, 1e6, "from a 1 mm steel pin to a 1000 t flywheel; outside, the mass matrix loses the belt", ">0")
+_INERTIA = Field("kg m^2", 1e-12, 1e6, "from a 1 mm steel pin to a 1000 t flywheel; outside, the mass matrix "
+                                       "loses the belt", ">0")
 _DAMPING = Field("N m s/rad", 0.0, 1e6, "a bearing or pivot this viscous is locked", ">=0")
 _RPM = Field("rpm", -1e6, 1e6, "faster than any belt-driven shaft")
 _ANGLE = Field("deg", -3600.0, 3600.0, "ten turns either way; beyond, sin and cos lose digits")

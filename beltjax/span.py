@@ -237,7 +237,8 @@ def check_arguments(length, tension, EA, EI, rhoA, speed=0.0, n_elements=20, bc=
     tension = _number(key["tension"], tension, "span.tension")
     EA, EI, rhoA = (_number(key[k], x, f"belt.{k}") for k, x in (("EA", EA), ("EI", EI), ("rhoA", rhoA)))
     speed = _number(key["speed"], speed, "span.speed")
-    if isinstance(n_elements, bool) or not isinstance(n_elements, (int, np.integer)) or not 1 <= n_elements <= MAX_ELEMENTS:
+    if (isinstance(n_elements, bool) or not isinstance(n_elements, (int, np.integer))
+            or not 1 <= n_elements <= MAX_ELEMENTS):
         raise BeltjaxError(f"must be an integer from 1 to {MAX_ELEMENTS}, got {n_elements!r}", "n_elements")
     pair = (bc, bc) if isinstance(bc, str) else tuple(bc) if isinstance(bc, (tuple, list)) else None
     if pair is None or len(pair) != 2 or any(b not in BOUNDARY_CONDITIONS for b in pair):
