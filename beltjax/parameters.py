@@ -58,14 +58,9 @@ class ParameterError(BeltjaxError):
         self.path = path
 
 
-def drive_pulley_name(scene: Scene) -> str:
-    """The pulley whose speed sets the belt's: the (first) driven one, else the first in the file."""
-    return next((p.name for p in scene.pulleys if p.driven), scene.pulleys[0].name)
-
-
 def _motion_rule(scene: Scene, name: str, key: str) -> str | None:
     """Why pulley ``name`` cannot take the prescribed-motion ``key``, or None."""
-    drive = drive_pulley_name(scene)
+    drive = validate.drive_pulley_name(scene)
     if key in _DRIVE_ONLY and name != drive:
         return (f"only the drive pulley takes a speed: a driven pulley (driven = true), else the first pulley "
                 f"(here {drive!r})")

@@ -17,7 +17,9 @@ below are checked on the whole drive by :mod:`beltjax.validate`:
   mode, (EA / Le^2 + EI / Le^4) / ((T + EI pi^2 / L^2) pi^2 / L^2) (needs the tension);
 * :data:`MAX_BENDING_RATIO`: EI / (EA Le^2) of the shortest element (bending against axial);
 * :data:`MAX_OFFSET_RATIO`: distance of the farthest centre from the origin against the
-  drive's smallest length (shortest span or smallest radius).
+  drive's smallest length (shortest span or smallest radius);
+* the drive pulley's belt speed (speed_rpm and target_speed_rpm on its radius): at most
+  ``drive.speed``'s 1e4 m/s.
 
 Measured on the bench belt (scripts in the commit messages): a 0.1 mm span beside 0.67 m
 ones (spread 5e10) moved the long spans' frequencies by 18 % (1 mm, 5e6: 2e-9); EA / T =
@@ -137,8 +139,8 @@ FIELDS: dict[str, Field] = {
     "span.length": Field(_LEN, 1e-4, 1e4, "from 0.1 mm to 10 km", ">0"),
     "span.tension": Field("N", 0.0, 1e8, "0 (a beam) to a conveyor's 1e7 N", ">=0"),
     "span.speed": Field("m/s", -1e4, 1e4, "twice the speed of sound in steel"),
-    "drive.speed": Field("m/s", 0.0, 1e4, "the belt runs in the route's direction; 1e4 is twice the speed of "
-                                          "sound in steel", ">=0"),
+    "drive.speed": Field("m/s", 0.0, 1e4, "twice the speed of sound in steel; the belt runs in the route's "
+                                          "direction", ">=0"),
     "drive.rpm": Field("rpm", 0.0, 1e6, "speeds of the drive pulley, >= 0; faster than any belt-driven shaft",
                        ">=0"),
 }
@@ -229,6 +231,10 @@ def derived_rows() -> list[tuple[str, str, str]]:
          "bending swamps the axial stiffness: the rotational and longitudinal modes are lost"),
         ("farthest centre from the origin over the smallest span or radius", f"<= {_g(MAX_OFFSET_RATIO)}",
          "round-off of the tangent geometry swamps the belt's stretch"),
+        ("belt speed of the drive pulley, |speed_rpm| 2 pi / 60 R (and its target_speed_rpm)",
+         f"<= {_g(FIELDS['drive.speed'].high)} m/s", FIELDS["drive.speed"].why.split(";")[0]),
+        ("a pulley's centre-of-mass offset |cm_offset|", "< radius", "inside the pulley"),
+        ("tensioner.arm_cm_distance", "<= arm_length", "along the arm"),
     ]
 
 

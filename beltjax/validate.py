@@ -42,6 +42,11 @@ _LOAD_SCALARS = {"torque": ("mean_Nm", "amplitude_Nm", "frequency_hz", "phase_de
                  "span_load": ("amplitude_N", "frequency_hz", "phase_deg", "t_start_s", "t_end_s")}
 
 
+def drive_pulley_name(scene: Scene) -> str:
+    """The pulley whose speed sets the belt's: the (first) driven one, else the first in the file."""
+    return next((p.name for p in scene.pulleys if p.driven), scene.pulleys[0].name)
+
+
 def is_traced(scene) -> bool:
     """Whether any leaf of ``scene`` is a JAX tracer (inside jit, vmap or grad)."""
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(scene))
@@ -96,7 +101,7 @@ def table(scene: Scene, values=None) -> tuple[dict[str, np.ndarray], dict[str, s
 # --------------------------------------------------------------------------- the checks
 
 
-def _ranges(t, keys):
+def _ranges(scene: Scene, t, keys):
     """[(status, bad (n,), describe(case) -> (key, message))] of the value checks."""
     out = []
     for path, v in t.items():
@@ -104,13 +109,21 @@ def _ranges(t, keys):
         if f is not None:
             out.append(("invalid_value", schema.bad(f, v),
                         lambda c, f=f, v=v, path=path: (keys[path], schema.problem(f, _at(v, c)))))
-    pulleys = sorted({p.split(".")[1] for p in t if p.startswith("pulley.") and p.endswith(".radius")})
-    for name in pulleys:
+    for name in [p.name for p in scene.pulleys]:
         off = np.hypot(t[f"pulley.{name}.cm_offset.x"], t[f"pulley.{name}.cm_offset.y"])
         R = t[f"pulley.{name}.radius"]
         out.append(("invalid_value", off >= R, lambda c, off=off, R=R, name=name: (
             keys[f"pulley.{name}.cm_offset.x"],
             f"offset {_at(off, c)!r} m must be smaller than the radius {_at(R, c)!r} m")))
+    name = drive_pulley_name(scene)
+    speed = schema.FIELDS["drive.speed"]
+    for k in ("speed_rpm", "target_speed_rpm"):
+        if f"pulley.{name}.{k}" in t:
+            rpm, R = t[f"pulley.{name}.{k}"], t[f"pulley.{name}.radius"]
+            v = np.abs(rpm) * (2 * np.pi / 60) * R
+            out.append(("invalid_value", v > speed.high, lambda c, k=k, v=v, R=R: (
+                keys[f"pulley.{name}.{k}"], f"gives the belt {_at(v, c):.6g} m/s on the radius {_at(R, c):g} m, "
+                f"beyond {speed.high:g} m/s ({speed.why})")))
     if "tensioner.arm_cm_distance" in t:
         cm, arm = t["tensioner.arm_cm_distance"], t["tensioner.arm_length"]
         out.append(("invalid_value", cm > arm, lambda c: (
@@ -301,7 +314,7 @@ def _offset(scene: Scene, t, C, lengths, entries, file_index):
 
 def _checks(scene: Scene, values=None):
     t, keys = table(scene, values)
-    yield from _ranges(t, keys)
+    yield from _ranges(scene, t, keys)
     with np.errstate(all="ignore"):
         yield from _geometry_checks(scene, t)
 
