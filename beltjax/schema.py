@@ -86,9 +86,12 @@ _MOMENT = Field("N m", -1e8, 1e8, "beyond any shaft's torque")
 #: every scalar: "belt.<key>", "pulley.<key>", "tensioner.<key>", "torque.<key>",
 #: "span_load.<key>", "simulation.<key>", "initial.<key>", and the API's "span.<key>"
 FIELDS: dict[str, Field] = {
-    "belt.EA": Field("N", 1.0, 1e10, "from an elastic cord (10 N) to a 2 m wide, 5 mm steel band (2e9 N)", ">0"),
-    "belt.EI": Field("N m^2", 0.0, 1e5, "0 is a string; a 2 m wide, 10 mm steel band has 3.5e4", ">=0"),
-    "belt.rhoA": Field("kg/m", 1e-6, 1e3, "from a 10 um tape to a heavy conveyor belt (100 kg/m)", ">0"),
+    "belt.EA": Field("N", 1.0, 1e10, "no belt is softer than an elastic cord (10 N) or stiffer than a 2 m wide, "
+                                     "5 mm steel band (2e9 N)", ">0"),
+    "belt.EI": Field("N m^2", 0.0, 1e5, "0 is a string; a 2 m wide, 10 mm steel band has 3.5e4; beyond, bending "
+                                          "swamps the axial stiffness in the element matrices", ">=0"),
+    "belt.rhoA": Field("kg/m", 1e-6, 1e3, "from a 10 um tape to a heavy conveyor belt (100 kg/m); beyond, the "
+                                          "modes leave any meaningful frequency", ">0"),
     "belt.CA": Field("N s", 0.0, 1e6, "the thesis' belt has 3-47 N s", ">=0", "belt_damping"),
     "belt.static_tension": Field("N", 1e-6, 1e8, "from a hanging thread to a conveyor's 1e7 N", ">0"),
     "belt.length": Field(_LEN, 1e-3, 1e6, "from a 1 mm loop to a 1000 km belt", ">0"),
@@ -101,7 +104,7 @@ FIELDS: dict[str, Field] = {
     "pulley.fluctuation_amplitude_deg": Field("deg", 0.0, 360.0, "a full turn", ">=0", "speed_fluctuation"),
     "pulley.fluctuation_frequency_hz": Field("Hz", 0.0, 1e6, "far above any belt-drive excitation", ">=0",
                                              "speed_fluctuation"),
-    "pulley.cm_offset": Field(_LEN, -1e2, 1e2, "inside the pulley: |offset| < radius", "", "unbalance"),
+    "pulley.cm_offset": Field(_LEN, -1e2, 1e2, "inside the pulley: the offset is shorter than the radius", "", "unbalance"),
     "pulley.bearing_damping": Field("N m s/rad", 0.0, 1e6, "a bearing this viscous is locked", ">=0",
                                     "bearing_damping"),
     "pulley.target_speed_rpm": _RPM,
@@ -136,7 +139,8 @@ FIELDS: dict[str, Field] = {
     "initial.rotation_deg": _ANGLE,
     "initial.arm_angle_deg": _ANGLE,
     # Python API arguments (beltjax.span.analyse_span, analyse_statics/modes, analyse_campbell)
-    "span.length": Field(_LEN, 1e-4, 1e4, "from 0.1 mm to 10 km", ">0"),
+    "span.length": Field(_LEN, 1e-4, 1e4, "shorter, the element stiffness EI / Le^4 leaves what float64 "
+                                         "eigen-solves resolve", ">0"),
     "span.tension": Field("N", 0.0, 1e8, "0 (a beam) to a conveyor's 1e7 N", ">=0"),
     "span.speed": Field("m/s", -1e4, 1e4, "twice the speed of sound in steel"),
     "drive.speed": Field("m/s", 0.0, 1e4, "twice the speed of sound in steel; the belt runs in the route's "
@@ -231,9 +235,9 @@ def derived_rows() -> list[tuple[str, str, str]]:
          "bending swamps the axial stiffness: the rotational and longitudinal modes are lost"),
         ("farthest centre from the origin over the smallest span or radius", f"<= {_g(MAX_OFFSET_RATIO)}",
          "round-off of the tangent geometry swamps the belt's stretch"),
-        ("belt speed of the drive pulley, |speed_rpm| 2 pi / 60 R (and its target_speed_rpm)",
+        ("belt speed of the drive pulley, abs(speed_rpm) 2 pi / 60 R (and its target_speed_rpm)",
          f"<= {_g(FIELDS['drive.speed'].high)} m/s", FIELDS["drive.speed"].why.split(";")[0]),
-        ("a pulley's centre-of-mass offset |cm_offset|", "< radius", "inside the pulley"),
+        ("length of a pulley's centre-of-mass offset cm_offset", "< radius", "inside the pulley"),
         ("tensioner.arm_cm_distance", "<= arm_length", "along the arm"),
     ]
 
