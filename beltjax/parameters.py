@@ -131,6 +131,8 @@ def check_value(path: str, value) -> None:
     if isinstance(value, jax.core.Tracer):
         return
     f = schema.field(path)
+    if f is not None and isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**1023:
+        raise ParameterError(path, schema.problem(f, value))  # beyond float64
     v = np.ravel(np.asarray(value, dtype=float))
     if f is not None and v.size:
         bad = schema.bad(f, v)
@@ -138,12 +140,15 @@ def check_value(path: str, value) -> None:
             raise ParameterError(path, schema.problem(f, v[int(np.argmax(bad))]))
 
 
+def _concrete(values: Mapping[str, object]) -> bool:
+    return not any(isinstance(v, jax.core.Tracer) for v in values.values())
+
+
 def _checked(scene: Scene, values: Mapping[str, object]) -> Scene:
-    """``scene`` (with ``values`` set) if concrete values pass the scene file's checks."""
-    if any(isinstance(v, jax.core.Tracer) for v in values.values()) or validate.is_traced(scene):
+    """``scene`` (with ``values`` set, each already checked by :func:`check_value`) if it passes
+    the scene file's checks of the whole drive; concrete values only."""
+    if not _concrete(values) or validate.is_traced(scene):
         return scene
-    for path, value in values.items():
-        check_value(path, value)
     if any(np.ndim(v) for v in values.values()):
         return scene  # a batch of values: checked case by case by beltjax.validate.case_status
     problem = validate.scene_problem(scene)
@@ -170,6 +175,7 @@ def set_value(scene: Scene, path: str, value) -> Scene:
     """A copy of ``scene`` with the scalar at ``path`` set to ``value`` (file units; traceable).
 
     A concrete value is checked with the new scene (see the module docstring)."""
+    check_value(path, value)
     return _checked(_set(scene, path, value), {path: value})
 
 
@@ -192,6 +198,8 @@ def _set(scene: Scene, path: str, value) -> Scene:
 def set_values(scene: Scene, values: Mapping[str, object]) -> Scene:
     """``scene`` with several parameters set: {path: value} (file units; traceable); concrete
     values are checked together, with the new scene (see the module docstring)."""
+    for path, value in values.items():
+        check_value(path, value)
     for path, value in values.items():
         scene = _set(scene, path, value)
     return _checked(scene, values) if values else scene

@@ -344,25 +344,8 @@ def _arr(x):
     return None if x is None else jnp.asarray(x, dtype=jnp.float64)
 
 
-def _num(t: tomltable.Table, k: str, group: str, *, required=True, default=None):
-    """A number at ``k`` of table ``t`` in the range of the schema field ``group.k``."""
-    v = t.number(k, required=required, default=default)
-    if t.has(k):
-        msg = schema.problem(schema.FIELDS[f"{group}.{k}"], t.raw(k, True))
-        if msg:
-            t.fail(k, msg)
-    return v
-
-
-def _vec(t: tomltable.Table, k: str, group: str, *, required=True, default=None):
-    """An [x, y] at ``k`` of table ``t``, each component in the range of ``group.k``."""
-    v = t.vector2(k, required=required, default=default)
-    if t.has(k):
-        for x in t.raw(k, True):
-            msg = schema.problem(schema.FIELDS[f"{group}.{k}"], x)
-            if msg:
-                t.fail(k, msg)
-    return v
+_num = schema.read_number
+_vec = schema.read_vector
 
 
 # --------------------------------------------------------------------------- sections

@@ -173,7 +173,7 @@ def problem(f: Field, value) -> str | None:
         v = float(value)
         shown = repr(value) if type(value) in (int, float) else repr(v)
     except OverflowError:  # an integer beyond float64
-        v, shown = math.copysign(math.inf, value), f"an integer of {len(str(abs(value)))} digits"
+        v, shown = (math.inf if value > 0 else -math.inf), f"an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits"
     if math.isnan(v) or (math.isinf(v) and not shown.startswith("an integer")):
         return f"must be finite, got {shown}"
     if f.sign == ">0" and not v > 0:
@@ -190,6 +190,28 @@ def bad(f: Field, values) -> np.ndarray:
     v = np.asarray(values, dtype=float)
     with np.errstate(invalid="ignore"):
         return ~(np.isfinite(v) & (v >= f.low) & (v <= f.high) & ((v > 0) if f.sign == ">0" else True))
+
+
+def read_number(t, k: str, group: str, *, required=True, default=None):
+    """The number at key ``k`` of a :class:`beltjax.tomltable.Table` ``t`` (the table's own type
+    checks), in the range of the field ``group.k`` (else ``t.fail``, naming the key)."""
+    v = t.number(k, required=required, default=default)
+    if t.has(k):
+        msg = problem(FIELDS[f"{group}.{k}"], t.raw(k, True))
+        if msg:
+            t.fail(k, msg)
+    return v
+
+
+def read_vector(t, k: str, group: str, *, required=True, default=None):
+    """The [x, y] at key ``k`` of table ``t``, each component in the range of ``group.k``."""
+    v = t.vector2(k, required=required, default=default)
+    if t.has(k):
+        for x in t.raw(k, True):
+            msg = problem(FIELDS[f"{group}.{k}"], x)
+            if msg:
+                t.fail(k, msg)
+    return v
 
 
 # --------------------------------------------------------------------------- derived limits
