@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, statics
+from beltjax import critical, drive, drive_modal, statics
 from beltjax.scene import Scene
 
 DEFAULT_ORDERS = (1.0, 2.0, 3.0)
@@ -35,6 +35,7 @@ def _batch(scene: Scene, speeds, n_modes: int):
         qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
         M, G, K = drive_modal.linearise(qi, scene, inst, v)
         stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyro, drive_modal.rigid_mode(scene, inst))
+        stable = stable & ~critical.supercritical(scene, qi, inst, v)  # past the critical speed: unstable
         return f[:n_modes], stable, info[0] > 0.5
 
     return jax.vmap(one)(speeds)
@@ -44,7 +45,8 @@ def campbell_frequencies(scene: Scene, rpm, n_modes: int = 20, chunk: int = 32, 
     """Frequencies (Hz) of the lowest ``n_modes`` modes at each drive-pulley speed.
 
     rpm: (n,) speeds of the drive pulley (rpm).  Returns (freqs (n, n_modes) with
-    NaN where the drive is unstable or the statics failed, stable (n,) bool, converged (n,) bool).
+    NaN where the drive is unstable, past its critical speed (:mod:`beltjax.critical`) or the
+    statics failed, stable (n,) bool (False past the critical speed), converged (n,) bool).
     progress: optional callable(done, total) called after each chunk.
     """
     scene = drive.canonical(scene)

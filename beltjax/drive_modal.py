@@ -311,7 +311,10 @@ class ModalResult:
     frequencies_hz ascending (rigid modes included, 0 Hz); labels; stable;
     unstable_eigenvalues (1/s) when not stable; energy_shares: name -> per-mode
     kinetic-energy share; speed_m_s; mode_shapes: (n_independent, n_modes),
-    real parts, unit max; statics: the :class:`beltjax.statics.StaticResult`.
+    real parts, unit max; statics: the :class:`beltjax.statics.StaticResult`;
+    unstable_reason: why the drive is reported unstable (None when stable): past the
+    critical speed (a span's force on the pulleys <= 0, :mod:`beltjax.critical`), or
+    modes that grow.
     """
 
     frequencies_hz: np.ndarray
@@ -323,6 +326,7 @@ class ModalResult:
     n_independent: int
     mode_shapes: np.ndarray = field(repr=False)
     statics: object = field(repr=False, default=None)
+    unstable_reason: str | None = None
 
     def to_json(self, n_modes: int | None = None) -> dict:
         """modal.json contents (first n_modes modes, all by default)."""
@@ -330,6 +334,7 @@ class ModalResult:
         return {
             "speed_m_s": self.speed_m_s,
             "stable": self.stable,
+            "unstable_reason": self.unstable_reason,
             "n_independent_coordinates": self.n_independent,
             "frequencies_hz": [float(x) for x in self.frequencies_hz[:k]],
             "labels": self.labels[:k],
@@ -338,19 +343,27 @@ class ModalResult:
         }
 
 
+#: why a drive whose linearised modes grow is reported unstable
+GROWING = ("the linearised drive has modes that grow (or that only gyroscopic coupling holds, "
+           "which any damping destroys): no natural frequencies")
+
+
 def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     """Natural frequencies, labelled mode shapes and stability of a drive at belt speed ``speed`` (m/s).
 
     Runs the statics first (its one-line errors apply).  At a speed with the
     ``transport`` effect the gyroscopic problem is solved; an unstable drive
-    gets ``stable=False``, its unstable eigenvalues and no frequencies.  The scene and the
-    speed are checked as in :func:`beltjax.statics.analyse_statics` (one-line errors).
+    gets ``stable=False``, its unstable eigenvalues, no frequencies and the reason
+    (``unstable_reason``).  A drive past its critical speed (a span's force on the
+    pulleys <= 0: :mod:`beltjax.critical`) is unstable whatever the eigenvalues say:
+    the rotational model's massless spans, for one, keep positive stiffness there.  The
+    scene and the speed are checked as in :func:`beltjax.statics.analyse_statics`.
     """
     from beltjax import validate
 
     validate.check_scene(scene)
     v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
-    st = statics.analyse_statics(scene, v)
+    st = statics.analyse_statics(scene, v, allow_supercritical=True)
     gyro = scene.model.has("transport") and v != 0.0
     qi = jnp.asarray(st.qi)
     out = modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
@@ -358,6 +371,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     n = drive.n_independent(scene)
     freqs = np.asarray(out["freqs"])
     shapes = np.asarray(out["shapes"])
+    unstable = np.zeros(0, complex)
     if not stable:
         # K is not positive definite on the flexible subspace: the companion form decides
         # there (gyroscopic stabilisation counts as unstable, see beltjax.modal)
@@ -372,10 +386,13 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
             rig = (v0 / np.max(np.abs(v0)))[:, None]
         ok, f, Z, unstable = modal.companion_modes(T.T @ M @ T, T.T @ G @ T, T.T @ K @ T)
         if not ok:
-            return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st)
+            return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st,
+                               st.supercritical or GROWING)
         stable = True  # K semi-definite up to round-off (e.g. exactly at a critical speed)
         freqs = np.concatenate([np.zeros(nr), f])
         shapes = np.concatenate([rig.astype(complex), T @ Z], axis=1)
+    if st.supercritical is not None:
+        return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st, st.supercritical)
     labels, shares = label_modes(freqs, shapes, qi, scene, st.inst, out["J"])
     Vr = np.real(shapes * np.exp(-1j * np.angle(np.sum(shapes**2, axis=0)) / 2))
     Vr = Vr / np.maximum(np.max(np.abs(Vr), axis=0, keepdims=True), 1e-300)

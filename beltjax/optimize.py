@@ -113,7 +113,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax import drive, drive_modal, parameters, statics, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.scene import MAX_ELEMENTS_PER_SPAN, TENSIONER, Scene, SceneError, loads_scene
 from beltjax.tomltable import describe
@@ -353,19 +353,9 @@ def parse(spec: dict, scene: Scene) -> Problem:
 
 
 def load(path, scene: Scene) -> Problem:
-    """Read and validate an optimisation file (TOML); :class:`OptimizeError` names the file or key."""
-    p = str(path)
-    try:
-        with open(p, "rb") as f:
-            spec = tomllib.load(f)
-    except FileNotFoundError:
-        raise OptimizeError("optimisation file not found", p) from None
-    except IsADirectoryError:
-        raise OptimizeError("is a directory, not an optimisation file", p) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise OptimizeError(f"malformed TOML: {exc}", p) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise OptimizeError(f"cannot read: {exc}", p) from None
+    """Read and validate an optimisation file (TOML, read by :mod:`beltjax.textfile`: a regular
+    file of bounded size); :class:`OptimizeError` names the file or key."""
+    spec = textfile.load_toml(str(path), "optimisation", textfile.keyed(_raise))
     return parse(spec, scene)
 
 
@@ -1073,27 +1063,30 @@ def _plot_campbell_band(result, path, title: str, problem: Problem) -> None:
 
 
 def plot_history(result: OptimizeResult, path) -> None:
-    """Save the loss history (log scale) and the variables' paths (scaled to their bounds) (PNG)."""
-    import matplotlib.pyplot as plt
+    """Save the loss history (log scale) and the variables' paths (scaled to their bounds) (PNG);
+    parameter paths drawn literally, paths that lie on each other dashed with a note."""
+    from beltjax.plotting import coinciding, literal, overlay_style, save, subplots
 
     steps = [h["step"] for h in result.history]
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    fig, (a1, a2) = subplots(2, 1, figsize=(9, 6.5), sharex=True)
     a1.semilogy(steps, np.maximum(result.loss_history, 1e-12), color="tab:blue", lw=1.5)
     a1.set_ylabel("loss")
     a1.grid(alpha=0.3, which="both")
     a1.set_title(f"loss {result.loss0:.4g} -> {result.loss:.4g}; {result.steps} steps, "
                  f"{result.rejected} rejected; {result.reason}", fontsize=9)
     X = np.array([h["x"] for h in result.history])
-    for j, p in enumerate(result.paths):
-        a2.plot(steps, (X[:, j] - result.lower[j]) / (result.upper[j] - result.lower[j]), lw=1.4, label=p)
+    scaled = [(X[:, j] - result.lower[j]) / (result.upper[j] - result.lower[j]) for j in range(len(result.paths))]
+    names = [literal(p, 60) for p in result.paths]
+    over = coinciding(scaled)
+    for j, y in enumerate(scaled):
+        ls, note = overlay_style(over, names, j)
+        a2.plot(steps, y, lw=1.4, ls=ls, label=names[j] + note)
     a2.set_ylim(-0.05, 1.05)
     a2.set_ylabel("(x - lower) / (upper - lower)")
     a2.set_xlabel("step")
     a2.grid(alpha=0.3)
     a2.legend(fontsize=8, loc="best")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
 
 
 # --------------------------------------------------------------------------- the command
@@ -1145,18 +1138,22 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     """
     from beltjax.plotting import plot_layout
 
+    from beltjax import outputs
+    from beltjax.progress import Reporter, message
+
     t0 = time.perf_counter()
     out = pathlib.Path(out)
     problem = load(spec_path, scene)
-    every = max(1, problem.steps // 15)
+    reporter = Reporter()  # on stderr: redrawn on a terminal, a line every few seconds elsewhere
 
     def progress(d):
-        if d["step"] % every == 0 or d["step"] == d["steps"]:
-            print(f"optimize: step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  best {d['best']:.5g}  "
-                  f"learning rate {d['learning_rate']:.3g}  rejected {d['rejected']}", file=sys.stderr, flush=True)
+        reporter.update(f"optimize: step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  best {d['best']:.5g}  "
+                        f"learning rate {d['learning_rate']:.3g}  rejected {d['rejected']}",
+                        final=d["step"] == d["steps"])
 
     res = optimise(scene, problem, progress)
-    print("optimize: checking the start and the result on the scene's mesh", file=sys.stderr, flush=True)
+    reporter.finish()
+    message("optimize: checking the start and the result on the scene's mesh")
     t_check = time.perf_counter()
     n_plot = relevant_modes(problem, res.measures0["freqs_hz"], res.measures["freqs_hz"])
     before = check(scene, problem, evaluator(scene, problem, res.x0, res), n_plot)
@@ -1169,7 +1166,7 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     if src.is_file():
         head = (f"# optimised by beltjax optimize ({spec_path}): "
                 + ", ".join(f"{p} {a:.6g} -> {b:.6g}" for p, a, b in zip(res.paths, res.x0, res.x)) + "\n")
-        text = head + edit_scene_text(src.read_text(), scene, changes)
+        text = head + edit_scene_text(textfile.read_text(src, "scene"), scene, changes)  # no byte-order mark
         _verify_scene_text(text, scene, changes)
         (out / "optimized_scene.toml").write_text(text)
         files.append("optimized_scene.toml")
@@ -1215,5 +1212,5 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     print(_table(res, before, after))
     if note:
         print(note)
-    print(f"wrote {', '.join(str(out / f) for f in ['optimize.json'] + files)}")
+    outputs.wrote([out / f for f in ["optimize.json"] + files])
     return 0

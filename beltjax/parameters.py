@@ -203,3 +203,10 @@ def set_values(scene: Scene, values: Mapping[str, object]) -> Scene:
     for path, value in values.items():
         scene = _set(scene, path, value)
     return _checked(scene, values) if values else scene
+
+
+def unit(path: str) -> str:
+    """The unit of the parameter at ``path`` as the scene file gives it (e.g. "m", "N m^2"),
+    "" for a path that names no known parameter (:mod:`beltjax.schema`)."""
+    f = schema.field(str(path))
+    return f.unit if f is not None else ""

@@ -73,7 +73,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import tomllib
 from typing import Any
 
 import equinox as eqx
@@ -81,7 +80,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import geometry, schema, tomltable
+from beltjax import geometry, schema, textfile, tomltable
 from beltjax.ancf import BENDING_MODELS
 from beltjax.errors import BeltjaxError
 from beltjax.tomltable import describe
@@ -784,30 +783,17 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
 def load_scene(path: str | os.PathLike) -> Scene:
     """Read and validate a TOML scene file; returns a :class:`Scene`.
 
-    Raises :class:`SceneError` (one line) for a missing or unreadable file,
-    malformed TOML (with the line and column) or an invalid scene.
+    Raises :class:`SceneError` (one line) for a missing file, one that is not a regular file
+    (a pipe, a device, a directory) or larger than the limit, text that is not UTF-8 (a
+    byte-order mark is accepted), malformed TOML (with the line and column), values no key can
+    carry (see :mod:`beltjax.textfile`) or an invalid scene.
     """
     p = os.fspath(path)
-    try:
-        with open(p, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        _fail(p, "scene file not found", p)
-    except IsADirectoryError:
-        _fail(p, "is a directory, not a scene file", p)
-    except tomllib.TOMLDecodeError as e:
-        _fail(p, f"malformed TOML: {e}", p)
-    except UnicodeDecodeError as e:
-        _fail(p, f"not a UTF-8 text file ({e.reason})", p)
-    except OSError as e:
-        _fail(p, f"cannot read: {e.strerror or e}", p)
+    data = textfile.load_toml(p, "scene", functools.partial(_fail, source=p))
     return parse_scene(data, source=p)
 
 
 def loads_scene(text: str, source: str = "<string>") -> Scene:
     """Parse and validate a scene given as TOML text (see :func:`load_scene`)."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        _fail(source, f"malformed TOML: {e}", source)
+    data = textfile.loads_toml(text, source, functools.partial(_fail, source=source))
     return parse_scene(data, source=source)

@@ -94,9 +94,11 @@ cases) give ``invalid_value`` (a value outside the parameter's range of
 neighbours), ``no_belt_path`` (a degenerate wrap, a span through a pulley, spans
 crossing) and ``ill_conditioned`` (a derived float64 limit); then a belt that cannot
 be fitted (slack, over-stretched, no tensioner balance), statics not converged
-(retried with speed stepping), a span gone slack, non-finite outputs; ``unstable``
-(past a critical speed) keeps the statics and has NaN frequencies.  The run summary
-counts them by cause.  A sweep accepts exactly what a scene file accepts.
+(retried with speed stepping), a span gone slack, non-finite outputs, ``supercritical``
+(the drive speed past the critical belt speed: a span's force on the pulleys <= 0,
+:mod:`beltjax.critical`); ``unstable`` (modes that grow) keeps the statics and has NaN
+frequencies.  The run summary counts them by cause.  A sweep accepts exactly what a scene
+file accepts.
 
 Command line: ``beltjax sweep SCENE SWEEP.toml [--backend local|dask] --out DIR``
 writes ``sweep.csv`` (one row per case: case, parameters, outputs, status),
@@ -115,7 +117,6 @@ import os
 import sys
 import threading
 import time
-import tomllib
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -125,7 +126,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, parameters, schema, statics, tomltable, validate
+from beltjax import critical, drive, drive_modal, parameters, schema, statics, textfile, tomltable, validate
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.tomltable import describe
@@ -144,10 +145,11 @@ SPACINGS = ("linear", "log")
 
 #: case status codes (index = the integer code) and their meaning
 STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched", "no_arm_balance",
-          "not_converged", "span_slack", "non_finite", "overlap", "no_belt_path", "ill_conditioned")
+          "not_converged", "span_slack", "non_finite", "supercritical", "overlap", "no_belt_path",
+          "ill_conditioned")
 REASONS = {
     "ok": "solved",
-    "unstable": "past a critical speed: no natural frequencies (statics kept)",
+    "unstable": "the linearised drive has modes that grow: no natural frequencies (statics kept)",
     "invalid_value": "a parameter value outside its accepted range (beltjax.schema; e.g. a negative stiffness, "
                      "EI = 1e20, a centre-of-mass offset outside its pulley)",
     "overlap": "two pulleys overlap, or the belt has no tangent from one pulley to the next",
@@ -160,6 +162,7 @@ REASONS = {
     "not_converged": "no static equilibrium found (Newton, also with speed stepping)",
     "span_slack": "a span would go slack (tension <= 0)",
     "non_finite": "non-finite outputs",
+    "supercritical": "past the critical belt speed: a span's force on the pulleys (tension less rhoA c^2 lam) <= 0",
 }
 _CODE = {s: i for i, s in enumerate(STATUS)}
 
@@ -421,21 +424,10 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
 
 
 def load_spec(path: str | os.PathLike) -> Spec:
-    """Read and validate a sweep file (TOML); raises :class:`SweepError` (one line)."""
+    """Read and validate a sweep file (TOML, read by :mod:`beltjax.textfile`: a regular file of
+    bounded size); raises :class:`SweepError` (one line)."""
     p = os.fspath(path)
-    try:
-        with open(p, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise SweepError(p, "sweep file not found") from None
-    except IsADirectoryError:
-        raise SweepError(p, "is a directory, not a sweep file") from None
-    except tomllib.TOMLDecodeError as e:
-        raise SweepError(p, f"malformed TOML: {e}") from None
-    except UnicodeDecodeError as e:
-        raise SweepError(p, f"not a UTF-8 text file ({e.reason})") from None
-    except OSError as e:
-        raise SweepError(p, f"cannot read: {e.strerror or e}") from None
+    data = textfile.load_toml(p, "sweep", textfile.keyed(_raise))
     return parse_spec(data, source=p)
 
 
@@ -554,8 +546,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     if sc.tensioner is not None:
         conds.insert(0, ~jnp.isfinite(inst.arm_angle))
         codes.insert(0, _CODE["no_arm_balance"])
-    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0)]
-    codes += [_CODE["not_converged"], _CODE["span_slack"]]
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
+    codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
     res: dict[str, jax.Array] = {}
     if "statics" in outputs:
         res["span_tensions_N"] = out["tensions"]
@@ -581,7 +573,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=4)
             M, G, K = drive_modal.linearise(q2, sc, inst2, vv)
             ok, f = drive_modal.frequencies_from_matrices(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
-            ok = ok & (info[0] > 0.5)
+            ok = ok & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
             return jnp.where(ok, f[:modes], jnp.nan), ok
 
         res["campbell_hz"], res["campbell_stable"] = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
@@ -968,13 +960,32 @@ def _flexible_columns(cols: Mapping[str, np.ndarray], k: int = 6) -> list[str]:
     return flex[:k]
 
 
+def _axis_label(path: str) -> str:
+    """A parameter path with its unit, drawn literally: ``belt.EI [N m^2]``."""
+    from beltjax.plotting import literal
+
+    u = parameters.unit(path)
+    return literal(path, 60) + (f" [{u}]" if u else "")
+
+
+def _column_label(name: str) -> str:
+    """The quantity and unit of an output column (``tension_<span>_N`` -> ``span tension [N]``)."""
+    for prefix, what in (("tension_", "span tension"), ("hub_", "hub force")):
+        if name.startswith(prefix) and name.endswith("_N"):
+            return f"{what} [N]"
+    if name.startswith("f") and name.endswith("_hz"):
+        return "frequency [Hz]"
+    return {"installation_tension_N": "installation tension [N]", "belt_length_m": "belt length [m]",
+            "tensioner_angle_deg": "tensioner arm angle [deg]", "spring_moment_Nm": "spring moment [N m]",
+            "campbell_unstable_from_rpm": "unstable from [rpm]"}.get(name, name)
+
+
 def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> list[Path]:
     """Outputs against the first grid parameter (lines: the other grid axes; with random samples
-    the mean over the samples and a min-max band).  Writes sweep_frequencies.png and sweep_statics.png."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    the mean over the samples and a min-max band).  Writes sweep_frequencies.png and sweep_statics.png.
+    Axes carry units (the parameter's, from :func:`beltjax.parameters.unit`); lines that lie on
+    each other are drawn dashed over the first with a note (:func:`beltjax.plotting.coinciding`)."""
+    from beltjax.plotting import coinciding, literal, literal_wrapped, overlay_style, save, subplots
 
     shape = (*spec.grid_shape, spec.samples if spec.random else 1)
     x = spec.grid[0].values
@@ -982,56 +993,60 @@ def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> 
     if len(others) > 12:
         others = others[:: math.ceil(len(others) / 12)]
     written = []
-    groups = [("sweep_frequencies.png", _flexible_columns(cols, 6), "frequency [Hz]"),
-              ("sweep_statics.png", [c for c in cols if c.startswith("tension_") or c.startswith("hub_")][:6], "[N]")]
-    for fname, names, unit in groups:
+    groups = [("sweep_frequencies.png", _flexible_columns(cols, 6)),
+              ("sweep_statics.png", [c for c in cols if c.startswith("tension_") or c.startswith("hub_")][:6])]
+    for fname, names in groups:
         if not names:
             continue
         nc = min(3, len(names))
         nr = math.ceil(len(names) / nc)
-        fig, axes = plt.subplots(nr, nc, figsize=(4.6 * nc, 3.4 * nr), squeeze=False)
+        fig, axes = subplots(nr, nc, figsize=(4.6 * nc, 3.4 * nr), squeeze=False)
         for ax, name in zip(axes.flat, names):
             Y = np.asarray(cols[name], float).reshape(shape)
+            curves = []
             for o in others:
                 y = Y[(slice(None), *o)]
                 with warnings.catch_warnings():  # all-NaN rows (failed cases) plot as gaps
                     warnings.simplefilter("ignore", RuntimeWarning)
                     mean, lo, hi = np.nanmean(y, -1), np.nanmin(y, -1), np.nanmax(y, -1)
-                lab = ", ".join(f"{a.parameter} = {a.values[i]:.4g}" for a, i in zip(spec.grid[1:], o)) or None
-                line, = ax.plot(x, mean, marker="o", ms=3, label=lab)
+                lab = ", ".join(f"{literal(a.parameter, 40)} = {a.values[i]:.4g}"
+                                + (f" {parameters.unit(a.parameter)}" if parameters.unit(a.parameter) else "")
+                                for a, i in zip(spec.grid[1:], o)) or None
+                curves.append((lab, mean, lo, hi))
+            over = coinciding([c[1] for c in curves])
+            for j, (lab, mean, lo, hi) in enumerate(curves):
+                ls, note = overlay_style(over, [c[0] or "" for c in curves], j)
+                line, = ax.plot(x, mean, marker="o" if over[j] is None else "x", ms=3, ls=ls,
+                                label=lab + note if lab else None)
                 if shape[-1] > 1:
                     ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
-            title = name
+            title = literal(name, 60)
             if labels and name.startswith("f") and name[1:-3].isdigit():
                 m = int(name[1:-3]) - 1
                 if m < len(labels):
-                    title = f"{name} (nominal scene: {labels[m]})"
+                    title = f"{literal(name, 60)} (nominal scene: {literal(labels[m], 60)})"
             ax.set_title(title, fontsize=8)
-            ax.set_xlabel(spec.grid[0].parameter, fontsize=8)
-            ax.set_ylabel(unit if unit != "[N]" else f"{name.split('_')[0]} [N]", fontsize=8)
+            ax.set_xlabel(_axis_label(spec.grid[0].parameter), fontsize=8)
+            ax.set_ylabel(_column_label(name), fontsize=8)
             ax.grid(alpha=0.3)
             ax.tick_params(labelsize=7)
-            if lab and name == names[0]:
+            if curves[0][0] and name == names[0]:
                 ax.legend(fontsize=6)
         for ax in list(axes.flat)[len(names):]:
             ax.set_visible(False)
         note = " (mean over the random samples; band: min-max)" if shape[-1] > 1 else ""
         if fname == "sweep_frequencies.png":
             note += "\nf_k: the k-th frequency of each case, sorted, not tracked (a mode may change rank across cases)"
-        fig.suptitle((spec.description or "parametric sweep") + note, fontsize=9)
-        fig.tight_layout()
-        fig.savefig(path / fname, dpi=100)
-        plt.close(fig)
+        fig.suptitle(literal_wrapped(spec.description or "parametric sweep", 120) + note, fontsize=9)
+        save(fig, path / fname, dpi=100)
         written.append(path / fname)
     return written
 
 
 def plot_histograms(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> Path | None:
-    """Histograms of span tensions and of the lowest flexible frequencies (sweep_histograms.png)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Histograms of span tensions and of the lowest flexible frequencies (sweep_histograms.png);
+    x axes: the quantity and its unit, y axes: the number of cases."""
+    from beltjax.plotting import literal, literal_wrapped, save, subplots
 
     names = [c for c in cols if c.startswith("tension_")] + _flexible_columns(cols, 4)
     names += [c for c in ("belt_length_m", "tensioner_angle_deg") if c in cols]
@@ -1040,54 +1055,54 @@ def plot_histograms(spec: Spec, cols, path: Path, labels: list[str] | None = Non
         return None
     nc = min(3, len(names))
     nr = math.ceil(len(names) / nc)
-    fig, axes = plt.subplots(nr, nc, figsize=(4.4 * nc, 3.2 * nr), squeeze=False)
+    fig, axes = subplots(nr, nc, figsize=(4.4 * nc, 3.4 * nr), squeeze=False)
     for ax, name in zip(axes.flat, names):
         y = np.asarray(cols[name], float)
         y = y[np.isfinite(y)]
         ax.hist(y, bins=min(40, max(5, int(np.sqrt(y.size)))), color="tab:blue", alpha=0.8)
-        title = name
+        title = literal(name, 60)
         if labels and name.startswith("f") and name[1:-3].isdigit() and int(name[1:-3]) - 1 < len(labels):
-            title = f"{name}: {labels[int(name[1:-3]) - 1]}"
+            title = f"{title}: {literal(labels[int(name[1:-3]) - 1], 60)}"
         ax.set_title(f"{title}\nmean {y.mean():.5g}, std {y.std():.3g}", fontsize=8)
+        ax.set_xlabel(_column_label(name), fontsize=8)
+        ax.set_ylabel("cases", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(names):]:
         ax.set_visible(False)
-    fig.suptitle(spec.description or "random sweep", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path / "sweep_histograms.png", dpi=100)
-    plt.close(fig)
+    fig.suptitle(literal_wrapped(spec.description or "random sweep", 120), fontsize=9)
+    save(fig, path / "sweep_histograms.png", dpi=100)
     return path / "sweep_histograms.png"
 
 
 def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.0)) -> Path:
-    """Campbell curves of every case (thin lines) with order lines (sweep_campbell.png)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Campbell curves of every case (thin lines) with order lines (sweep_campbell.png).  A mode
+    whose curves lie on an earlier mode's in every case is drawn dashed over it, with a note."""
+    from beltjax.plotting import coinciding, colormap, literal, overlay_style, save, subplots
 
     rpm, F = result["campbell_rpm"], result["campbell_hz"]
-    fig, ax = plt.subplots(figsize=(10, 6))
+    fig, ax = subplots(figsize=(10, 6))
     flex = [m for m in range(F.shape[2]) if np.any(np.isfinite(F[:, :, m])) and np.nanmax(F[:, :, m]) >= drive_modal.RIGID_HZ]
-    cmap = plt.get_cmap("tab10")
+    colour = colormap(10)
     alpha = max(0.05, min(0.8, 8.0 / max(F.shape[0], 1)))
+    over = coinciding([F[:, :, m] for m in flex])
+    names = [f"mode {m + 1}" for m in flex]
     for j, m in enumerate(flex):
+        ls, note = overlay_style(over, names, j)
         for i in range(F.shape[0]):
-            ax.plot(rpm, F[i, :, m], color=cmap(j % 10), lw=0.8, alpha=alpha, label=f"mode {m + 1}" if i == 0 else None)
+            ax.plot(rpm, F[i, :, m], color=colour(j), lw=0.8 if over[j] is None else 1.2, ls=ls, alpha=alpha,
+                    label=names[j] + note if i == 0 else None)
     top = 1.2 * np.nanmax(F[:, 0, flex]) if flex and np.any(np.isfinite(F[:, 0, flex])) else 100.0
     ax.set_ylim(0, top)
     for k in orders:
         ax.plot(rpm, k * rpm / 60.0, ls="--", color="0.35", lw=1.0)
-    ax.set_xlabel(f"{drive_name} speed [rpm]")
+    ax.set_xlabel(f"{literal(drive_name, 60)} speed [rpm]")
     ax.set_ylabel("natural frequency [Hz]")
     ax.set_title(f"Campbell diagrams of {F.shape[0]} cases (order lines {', '.join(f'{k:g}x' for k in orders)})",
                  fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.tight_layout()
-    fig.savefig(path / "sweep_campbell.png", dpi=100)
-    plt.close(fig)
+    save(fig, path / "sweep_campbell.png", dpi=100)
     return path / "sweep_campbell.png"
 
 
@@ -1095,21 +1110,11 @@ def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.
 
 
 def progress_bar(label: str = "sweep") -> Callable[[int, int], None]:
-    """A progress callback printing ``label [#####     ] done/total cases (elapsed)`` to stderr
-    (at most 4 times a second, and at the end)."""
-    t0 = time.perf_counter()
-    last = [-1.0]
+    """A progress callback drawing ``label [#####     ] done/total cases (elapsed)`` on stderr
+    (:func:`beltjax.progress.counter`: redrawn in place on a terminal, whole lines elsewhere)."""
+    from beltjax.progress import counter
 
-    def show(done: int, total: int) -> None:
-        now = time.perf_counter() - t0
-        if done < total and now - last[0] < 0.25:  # at most 4 updates a second
-            return
-        last[0] = now
-        bar = "#" * int(30 * done / max(total, 1))
-        end = "\n" if done >= total else ""
-        print(f"\r  {label} [{bar:<30}] {done}/{total} cases ({now:6.1f} s)", end=end, file=sys.stderr, flush=True)
-
-    return show
+    return counter(f"  {label}", "cases")
 
 
 def summary_table(cols: Mapping[str, np.ndarray], stats: Mapping[str, dict], labels: list[str] | None = None,
@@ -1242,7 +1247,9 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
     print(summary_table(cols, data["summary"], labels))
     if labels:
         print("(labels: the modes of the nominal scene; frequencies are sorted per case, not tracked across cases)")
-    print("wrote " + ", ".join(str(f) for f in files))
+    from beltjax.outputs import wrote
+
+    wrote(files)  # printed here, or by the command line once the files are moved into --out
     if data["ok"] + data["unstable"] == 0:
         print("beltjax: every case failed (see the status column of sweep.csv)", file=sys.stderr)
         return 1
