@@ -294,9 +294,21 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
     Runs the statics at the lowest speed first (its one-line errors apply).  The modes are
     tracked across speeds (:func:`campbell_modes`); the result holds every mode that is among
     the lowest ``n_modes`` at some speed (so possibly more than n_modes curves; a repeated
-    pair is kept whole), each curve labelled from its shape at every speed.
+    pair is kept whole), each curve labelled from its shape at every speed.  The scene is
+    checked as a scene file is; a speed that is NaN, infinite or negative, an order that is
+    not positive and finite, or n_modes below 1 is a one-line
+    :class:`beltjax.errors.BeltjaxError` naming the argument.
     """
-    rpm = np.sort(np.asarray(rpm, dtype=float))
+    from beltjax import validate
+    from beltjax.errors import BeltjaxError
+
+    validate.check_scene(scene)
+    rpm = np.sort(validate.speeds(rpm, "rpm", "drive.rpm"))
+    o = np.asarray(orders, dtype=float).reshape(-1) if np.ndim(orders) <= 1 else np.zeros(0)
+    if o.size == 0 or not np.all(np.isfinite(o) & (o > 0)):
+        raise BeltjaxError(f"expected positive finite excitation orders, got {orders!r}", "orders")
+    if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise BeltjaxError(f"must be an integer >= 1, got {n_modes!r}", "n_modes")
     statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])), allow_supercritical=True)
     tm = campbell_modes(scene, rpm, n_modes, progress=progress)
     t = tm.tracking

@@ -23,13 +23,14 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message)
 
 
-def _number(name, positive=False, allow_zero=True):
+def _number(name, positive=False, allow_zero=True, finite=True):
+    """A number argument; finite=False leaves NaN and infinity to the API's range check."""
     def parse(text):
         try:
             x = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"--{name} must be a number, got {text!r}") from None
-        if not math.isfinite(x):
+        if finite and not math.isfinite(x):
             raise argparse.ArgumentTypeError(f"--{name} must be finite, got {text!r}")
         if positive and (x < 0 or (x == 0 and not allow_zero)):
             raise argparse.ArgumentTypeError(f"--{name} must be {'> 0' if not allow_zero else '>= 0'}, got {text!r}")
@@ -159,7 +160,10 @@ def cmd_span(args) -> int:
     """Run the span analysis, print the table, write span.json and span_modes.png."""
     from beltjax import analyse_span
     from beltjax.plotting import plot_span_modes
+    from beltjax.span import check_arguments
 
+    check_arguments(args.length, args.tension, args.EA, args.EI, args.rhoA, args.speed, args.elements, args.bc,
+                    args.bending, keys={k: f"--{k}" for k in ("length", "tension", "EA", "EI", "rhoA", "speed")})
     out = _out_dir(args.out)
     result = analyse_span(args.length, args.tension, args.EA, args.EI, args.rhoA, speed=args.speed,
                           n_elements=args.elements, bc=args.bc, bending=args.bending)
@@ -480,12 +484,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="beltjax", description="Belt-drive simulation with ANCF belt spans (JAX).")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
     sp = sub.add_parser("span", help="natural frequencies and modes of one tensioned (moving) belt span")
-    sp.add_argument("--length", type=_number("length", True, False), required=True, help="span length [m]")
-    sp.add_argument("--tension", type=_number("tension", True, False), required=True, help="static tension [N]")
-    sp.add_argument("--speed", type=_number("speed"), default=0.0, help="belt speed [m/s] (default 0)")
-    sp.add_argument("--EA", type=_number("EA", True, False), required=True, help="axial stiffness [N]")
-    sp.add_argument("--EI", type=_number("EI", True, False), required=True, help="bending stiffness [N m^2]")
-    sp.add_argument("--rhoA", type=_number("rhoA", True, False), required=True,
+    # finiteness and ranges: beltjax.span.check_arguments in cmd_span (the API's messages)
+    sp.add_argument("--length", type=_number("length", True, False, False), required=True, help="span length [m]")
+    sp.add_argument("--tension", type=_number("tension", True, False, False), required=True, help="static tension [N]")
+    sp.add_argument("--speed", type=_number("speed", finite=False), default=0.0, help="belt speed [m/s] (default 0)")
+    sp.add_argument("--EA", type=_number("EA", True, False, False), required=True, help="axial stiffness [N]")
+    sp.add_argument("--EI", type=_number("EI", True, False, False), required=True, help="bending stiffness [N m^2]")
+    sp.add_argument("--rhoA", type=_number("rhoA", True, False, False), required=True,
                     help="mass per unit unstretched length [kg/m]")
     sp.add_argument("--elements", type=_elements, default=16, help="ANCF elements (default 16)")
     sp.add_argument("--bc", choices=["pinned", "clamped"], default="pinned", help="end condition (default pinned)")

@@ -419,9 +419,13 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     gets ``stable=False``, its unstable eigenvalues, no frequencies and the reason
     (``unstable_reason``).  A drive past its critical speed (a span's force on the
     pulleys <= 0: :mod:`beltjax.critical`) is unstable whatever the eigenvalues say:
-    the rotational model's massless spans, for one, keep positive stiffness there.
+    the rotational model's massless spans, for one, keep positive stiffness there.  The
+    scene and the speed are checked as in :func:`beltjax.statics.analyse_statics`.
     """
-    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
+    from beltjax import validate
+
+    validate.check_scene(scene)
+    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
     st = statics.analyse_statics(scene, v, allow_supercritical=True)
     gyro = scene.model.has("transport") and v != 0.0
     qi = jnp.asarray(st.qi)

@@ -231,6 +231,11 @@ def _parse_variable(d, i: int, scene: Scene) -> Variable:
         raise OptimizeError(str(exc), f"{key}.parameter") from None
     lo = t.number("lower", required=True)
     hi = t.number("upper", required=True)
+    for k, x in (("lower", lo), ("upper", hi)):
+        try:  # a bound outside the parameter's accepted range (beltjax.schema)
+            parameters.check_value(path, x)
+        except parameters.ParameterError as exc:
+            t.fail(k, f"{path} {str(exc)[len(path) + 2:]}")
     if not lo < hi:
         t.fail("upper", f"must be > lower = {lo!r}, got {hi!r}")
     scale = t.number("scale", required=False, default=hi - lo, positive=True)

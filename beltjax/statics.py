@@ -382,12 +382,17 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     less rhoA c^2 lam, <= 0: :mod:`beltjax.critical`; the line names the span, the speed
     and the critical speed).  With ``allow_supercritical`` such a state is returned
     instead, with the reason in ``supercritical`` (for the modal analysis, which reports
-    it as unstable, and the transients, which record it).
+    it as unstable, and the transients, which record it).  A scene that fails the scene
+    file's checks (:func:`beltjax.validate.check_scene`) or a speed that is NaN, infinite,
+    negative or beyond 1e4 m/s is a one-line :class:`beltjax.errors.BeltjaxError`.
     """
+    from beltjax import validate
+
+    validate.check_scene(scene)
+    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
     scene = drive.canonical(scene)
     inst = install_compiled(scene)
     check_installation(scene, inst)
-    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
     out, conv, it, rn = solve_at(scene, v)
     if not conv:
         vc = critical.critical_speed(scene, v) if v != 0.0 else None

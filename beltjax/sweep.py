@@ -100,12 +100,18 @@ campbell
     ``beltjax campbell``); ``campbell_mode_match`` is a case's lowest MAC.
 
 A case without an admissible state is never silently wrong: its outputs are NaN
-and its ``status`` names the cause (:data:`STATUS`): a value outside the
-parameter's range, a belt that cannot be fitted (slack, over-stretched, no
-tensioner balance), statics not converged (retried with speed stepping), a span
-gone slack, non-finite outputs, ``supercritical`` (the drive speed past the
-critical belt speed: a span's force on the pulleys <= 0, :mod:`beltjax.critical`);
-``unstable`` (modes that grow) keeps the statics and has NaN frequencies.  The run summary counts them by cause.
+and its ``status`` names the cause (:data:`STATUS`): before any computation, the
+scene file's checks (:func:`beltjax.validate.case_status`, vectorised over the
+cases) give ``invalid_value`` (a value outside the parameter's range of
+:mod:`beltjax.schema`), ``overlap`` (pulleys overlap, or no tangent between
+neighbours), ``no_belt_path`` (a degenerate wrap, a span through a pulley, spans
+crossing) and ``ill_conditioned`` (a derived float64 limit); then a belt that cannot
+be fitted (slack, over-stretched, no tensioner balance), statics not converged
+(retried with speed stepping), a span gone slack, non-finite outputs, ``supercritical``
+(the drive speed past the critical belt speed: a span's force on the pulleys <= 0,
+:mod:`beltjax.critical`); ``unstable`` (modes that grow) keeps the statics and has NaN
+frequencies.  The run summary counts them by cause.  A sweep accepts exactly what a scene
+file accepts.
 
 Command line: ``beltjax sweep SCENE SWEEP.toml [--backend local|dask] --out DIR``
 writes ``sweep.csv`` (one row per case: case, parameters, outputs, status),
@@ -133,7 +139,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, drive_modal, mode_tracking, parameters, statics, sweep_modes, textfile, tomltable
+from beltjax import (critical, drive, drive_modal, mode_tracking, parameters, schema, statics, sweep_modes, textfile,
+                     tomltable, validate)
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.tomltable import describe
@@ -152,11 +159,17 @@ SPACINGS = ("linear", "log")
 
 #: case status codes (index = the integer code) and their meaning
 STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched", "no_arm_balance",
-          "not_converged", "span_slack", "non_finite", "supercritical")
+          "not_converged", "span_slack", "non_finite", "supercritical", "overlap", "no_belt_path",
+          "ill_conditioned")
 REASONS = {
     "ok": "solved",
     "unstable": "the linearised drive has modes that grow: no natural frequencies (statics kept)",
-    "invalid_value": "a parameter value outside its range (e.g. a non-positive stiffness, radius or mass)",
+    "invalid_value": "a parameter value outside its accepted range (beltjax.schema; e.g. a negative stiffness, "
+                     "EI = 1e20, a centre-of-mass offset outside its pulley)",
+    "overlap": "two pulleys overlap, or the belt has no tangent from one pulley to the next",
+    "no_belt_path": "a degenerate wrap angle, a span through a pulley, or two spans crossing",
+    "ill_conditioned": "beyond what float64 carries (a pinched span beside long ones, EA swamping the string "
+                       "stiffness, EI swamping EA, a drive far from the origin)",
     "belt_slack": "belt too long to fit: it would hang slack",
     "belt_overstretched": f"belt too short to fit: more than {100 * statics.MAX_INSTALL_STRAIN:g} % stretch",
     "no_arm_balance": "no tensioner arm angle balances the spring against the belt",
@@ -166,12 +179,6 @@ REASONS = {
     "supercritical": "past the critical belt speed: a span's force on the pulleys (tension less rhoA c^2 lam) <= 0",
 }
 _CODE = {s: i for i, s in enumerate(STATUS)}
-
-# parameter keys (last path component) that must be > 0, and >= 0
-_POSITIVE = {"EA", "EI", "rhoA", "static_tension", "length", "radius", "mass", "inertia", "arm_length",
-             "pulley_radius", "arm_mass", "arm_inertia", "pulley_mass", "pulley_inertia", "spring_stiffness"}
-_NONNEGATIVE = {"CA", "bearing_damping", "damping", "arm_cm_distance", "fluctuation_amplitude_deg",
-                "fluctuation_frequency_hz"}
 
 _TOP_KEYS = ("description", "outputs", "modes", "rpm", "chunk", "samples", "seed", "dask_scheduler", "grid", "random")
 _GRID_KEYS = ("parameter", "values", "start", "stop", "num", "spacing")
@@ -267,6 +274,9 @@ def _rpm_range(key: str, v) -> np.ndarray:
         raise SweepError(f"{key}[0]", f"start A must be >= 0, got {v[0]!r}")
     if b < a:
         raise SweepError(f"{key}[1]", f"end B must be >= start A, got {v[1]!r}")
+    msg = schema.problem(schema.FIELDS["drive.rpm"], b)
+    if msg:
+        raise SweepError(f"{key}[1]", msg)
     n = math.ceil((b + step / 2 - a) / step)
     if n > MAX_SPEEDS:
         raise SweepError(key, f"gives {n} speeds, at most {MAX_SPEEDS} allowed")
@@ -450,12 +460,11 @@ def nominal_value(scene: Scene, path: str) -> float:
 
 
 def _check_range(key: str, path: str, values) -> None:
-    name = path.rsplit(".", 1)[-1]
-    v = np.asarray(values, float)
-    if name in _POSITIVE and np.any(v <= 0):
-        raise SweepError(key, f"{path} must be > 0, got {float(v[v <= 0][0])!r}")
-    if name in _NONNEGATIVE and np.any(v < 0):
-        raise SweepError(key, f"{path} must be >= 0, got {float(v[v < 0][0])!r}")
+    """A value that no case could use (outside the range of :mod:`beltjax.schema`): one line."""
+    try:
+        parameters.check_value(path, values)
+    except parameters.ParameterError as exc:
+        raise SweepError(key, f"{path} {str(exc)[len(path) + 2:]}") from None
 
 
 def check_spec(scene: Scene, spec: Spec) -> None:
@@ -463,7 +472,6 @@ def check_spec(scene: Scene, spec: Spec) -> None:
     for a in [*spec.grid, *spec.random]:
         try:
             parameters.check(scene, a.parameter)
-            parameters.set_value(scene, a.parameter, 1.0)
         except parameters.ParameterError as exc:
             raise SweepError(f"{a.key}.parameter", str(exc)) from None
     for a in spec.grid:
@@ -509,18 +517,11 @@ def cases(scene: Scene, spec: Spec) -> dict[str, np.ndarray]:
     return out
 
 
-def _invalid(values: Mapping[str, np.ndarray], n: int) -> np.ndarray:
-    """(n,) bool: cases with a value outside its parameter's range."""
-    bad = np.zeros(n, bool)
-    for path, v in values.items():
-        name = path.rsplit(".", 1)[-1]
-        v = np.asarray(v, float)
-        bad |= ~np.isfinite(v)
-        if name in _POSITIVE:
-            bad |= v <= 0
-        elif name in _NONNEGATIVE:
-            bad |= v < 0
-    return bad
+def _precheck(scene: Scene, values: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+    """(n,) status codes of the scene file's checks on every case (:func:`beltjax.validate.case_status`,
+    vectorised over the cases; 0 where they pass)."""
+    status, _ = validate.case_status(scene, values, n)
+    return np.asarray([_CODE[s] for s in status], dtype=int) if n else np.zeros(0, int)
 
 
 # --------------------------------------------------------------------------- the batched function
@@ -885,7 +886,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     opts = _Options(outputs=outputs, modes=modes, gyro=scene.model.has("transport") and moving, track=track)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
-    invalid = _invalid(values, n)
+    pre = _precheck(scene, values, n)
+    invalid = pre != _CODE["ok"]
     if invalid.all():
         run_values = values
     else:  # evaluate a valid case in place of invalid ones (their outputs are discarded)
@@ -900,16 +902,17 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     else:
         results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
     out = {k: np.concatenate([r[k] for r in results]) for k in results[0]}
-    out = _finish(out, invalid, rpm)
+    out = _finish(out, pre, rpm)
     for key, o in (("mode_labels", "modal"), ("campbell_mode_labels", "campbell")):
         if o in outputs:
             out[key] = list(refs[o][1]) if refs.get(o) else None
     return out
 
 
-def _finish(out: dict[str, np.ndarray], invalid: np.ndarray, rpm: np.ndarray) -> dict[str, np.ndarray]:
-    """Status strings; NaN in every output of a failed case (frequencies only for unstable ones)."""
-    code = np.where(invalid, _CODE["invalid_value"], out.pop("code")).astype(int)
+def _finish(out: dict[str, np.ndarray], pre: np.ndarray, rpm: np.ndarray) -> dict[str, np.ndarray]:
+    """Status strings; NaN in every output of a failed case (frequencies only for unstable ones).
+    pre: (n,) codes of the checks before the computation (0: passed)."""
+    code = np.where(pre != _CODE["ok"], pre, out.pop("code")).astype(int)
     failed = (code != _CODE["ok"]) & (code != _CODE["unstable"])
     for k, v in out.items():
         if v.dtype.kind == "f":
