@@ -166,3 +166,10 @@ def test_readme_bad_input_table_is_the_saved_run_of_the_robustness_rows():
     assert len(rows) == len(t.CASES), "re-run benchmarks/bad_inputs_table.py"
     for case, row in zip(t.CASES, rows):
         assert row.startswith(f"| {case.input.replace('|', chr(92) + '|')} |"), (case.id, row)
+
+
+def test_readme_ranges_table_is_the_schema():
+    """The README's table of accepted ranges is generated from beltjax.schema (one source)."""
+    from beltjax import schema
+
+    assert _marked_table("ranges") == [x for x in schema.markdown_table().splitlines() if x.strip()]
