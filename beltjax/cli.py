@@ -23,13 +23,14 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message)
 
 
-def _number(name, positive=False, allow_zero=True):
+def _number(name, positive=False, allow_zero=True, finite=True):
+    """A number argument; finite=False leaves NaN and infinity to the API's range check."""
     def parse(text):
         try:
             x = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"--{name} must be a number, got {text!r}") from None
-        if not math.isfinite(x):
+        if finite and not math.isfinite(x):
             raise argparse.ArgumentTypeError(f"--{name} must be finite, got {text!r}")
         if positive and (x < 0 or (x == 0 and not allow_zero)):
             raise argparse.ArgumentTypeError(f"--{name} must be {'> 0' if not allow_zero else '>= 0'}, got {text!r}")
@@ -159,12 +160,11 @@ def cmd_span(args) -> int:
     """Run the span analysis, print the table, write span.json and span_modes.png."""
     from beltjax import analyse_span
     from beltjax.plotting import plot_span_modes
+    from beltjax.span import check_arguments
 
-    out = pathlib.Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"--out: cannot create directory {str(out)!r}: {exc.strerror}") from None
+    check_arguments(args.length, args.tension, args.EA, args.EI, args.rhoA, args.speed, args.elements, args.bc,
+                    args.bending, keys={k: f"--{k}" for k in ("length", "tension", "EA", "EI", "rhoA", "speed")})
+    out = _out_dir(args.out)
     result = analyse_span(args.length, args.tension, args.EA, args.EI, args.rhoA, speed=args.speed,
                           n_elements=args.elements, bc=args.bc, bending=args.bending)
     data = result.to_json()
@@ -174,7 +174,6 @@ def cmd_span(args) -> int:
     (out / "span.json").write_text(json.dumps(data, indent=2))
     plot_span_modes(result, out / "span_modes.png")
     print(span_table(result))
-    print(f"wrote {out / 'span.json'} and {out / 'span_modes.png'}")
     return 0
 
 
@@ -182,6 +181,14 @@ def cmd_span(args) -> int:
 
 
 def _out_dir(text) -> pathlib.Path:
+    """The folder a command writes its files into: the temporary folder of the output stage
+    that :func:`main` opened for ``--out`` (moved into ``--out`` when the command succeeds,
+    see :mod:`beltjax.outputs`); called outside main, ``text`` itself, created."""
+    from beltjax import outputs
+
+    stage = outputs.active()
+    if stage is not None and str(stage.target) == str(text):
+        return stage.folder()
     out = pathlib.Path(text)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -252,15 +259,16 @@ def cmd_statics(args) -> int:
     plot_layout(scene, res, out / "layout.png")
     print(f"statics of {_title(scene, args.scene)}")
     print(statics_table(res))
-    print(f"wrote {out / 'statics.json'} and {out / 'layout.png'}")
     return 0
 
 
 def modal_table(m, n_modes: int) -> str:
     """Mode number, frequency and label of the first n_modes modes of a ModalResult."""
     if not m.stable:
-        lines = [f"UNSTABLE at belt speed {m.speed_m_s:g} m/s (past the critical speed); unstable eigenvalues [1/s]:"]
-        lines += [f"  {lam.real:+.4g} {lam.imag:+.4g}j" for lam in m.unstable_eigenvalues]
+        lines = [f"UNSTABLE at belt speed {m.speed_m_s:g} m/s: {m.unstable_reason}"]
+        if len(m.unstable_eigenvalues):
+            lines.append("unstable eigenvalues [1/s]:")
+            lines += [f"  {lam.real:+.4g} {lam.imag:+.4g}j" for lam in m.unstable_eigenvalues]
         return "\n".join(lines)
     k = min(n_modes, len(m.frequencies_hz))
     lines = [f"{'mode':>4}  {'frequency [Hz]':>14}  label"]
@@ -282,19 +290,34 @@ def cmd_modal(args) -> int:
     if not all(math.isfinite(x) for x in data["frequencies_hz"]):
         raise RuntimeError("the eigen-analysis produced a non-finite frequency")
     (out / "modal.json").write_text(json.dumps(data, indent=2))
-    plot_drive_modes(scene, m, out / "modes.png", n_modes=6, pool=args.modes)
+    plot_drive_modes(scene, m, out / "modes.png", n_modes=args.modes, pool=args.modes)
     rpm = "" if args.rpm is None else f" ({args.rpm:g} rpm of the drive pulley)"
     print(f"modes of {_title(scene, args.scene)}")
     print(f"belt speed {m.speed_m_s:g} m/s{rpm}" + ("; stable" if m.stable else ""))
     if m.speed_m_s != 0 and not scene.model.has("transport"):
         print("note: the scene does not list the \"transport\" effect, so the belt speed does not change the modes")
     print(modal_table(m, args.modes))
-    print(f"wrote {out / 'modal.json'} and {out / 'modes.png'}")
+    print(_panels_note(m, args.modes))
     return 0
 
 
+def _panels_note(m, n_modes: int) -> str:
+    """The line saying which modes modes.png draws (and that it draws at most MAX_MODE_PANELS)."""
+    from beltjax.plotting import MAX_MODE_PANELS, mode_panels
+
+    picks, available = mode_panels(m, n_modes, n_modes)
+    if not picks:
+        return "modes.png: no flexible mode to draw"
+    shown = ", ".join(str(i + 1) for i in picks)
+    more = (f"; {available - len(picks)} more flexible modes not drawn (at most {MAX_MODE_PANELS} panels)"
+            if available > len(picks) else "")
+    return f"modes.png: the flexible modes among the first {n_modes}: {shown}{more}"
+
+
 def campbell_summary(c, n_rows: int = 12) -> str:
-    """Frequencies at the lowest and highest speeds, and the crossings, of a CampbellResult."""
+    """Frequencies at the lowest and highest speeds of each tracked mode, the crossings (each
+    with the label of the mode that crosses, read from its shape there) and the label changes
+    (veering) of a CampbellResult."""
     import numpy as np
 
     F = np.asarray(c.frequencies_hz, float)
@@ -315,8 +338,10 @@ def campbell_summary(c, n_rows: int = 12) -> str:
         lines.append(f"UNSTABLE at {int((unstable & ~failed).sum())} of {len(c.rpm)} speeds (from {bad.min():g} rpm): "
                      "past a critical speed, no natural frequencies")
     k = min(n_rows, F.shape[1])
-    lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  "
-              f"label (at {r0:g} rpm; modes are sorted by frequency, not tracked)"]
+    tracked = getattr(c, "tracked", False)
+    head = ("label (each mode followed across speeds by its shape)" if tracked
+            else f"label (at {r0:g} rpm; modes sorted by frequency)")
+    lines += ["", f"{'mode':>4}  {f'{r0:g} rpm [Hz]':>14}  {f'{r1:g} rpm [Hz]':>14}  {head}"]
     fmt = lambda x: f"{x:>14.2f}" if np.isfinite(x) else f"{'-':>14}"  # noqa: E731
     for i in range(k):
         lines.append(f"{i + 1:>4}  {fmt(F[0, i])}  {fmt(F[-1, i])}  {c.labels[i]}")
@@ -330,6 +355,18 @@ def campbell_summary(c, n_rows: int = 12) -> str:
                          f"mode {x['mode']} ({x['label']})")
     else:
         lines.append("no crossings in this speed range")
+    changes = getattr(c, "label_changes", None) or []
+    if changes:
+        lines.append(f"{len(changes)} label changes along a mode (veering: two modes exchange their shapes):")
+        for x in changes:
+            lines.append(f"  mode {x['mode']} between {x['after_rpm']:g} and {x['rpm']:g} rpm: {x['from']} -> {x['to']}")
+    uncertain = c.uncertain() if tracked else []
+    if uncertain:
+        from beltjax.mode_tracking import UNCERTAIN_MAC
+
+        where = sorted({u["rpm"] for u in uncertain})
+        lines.append(f"tracking uncertain at {len(where)} speeds (a mode's shape changes much within one step, "
+                     f"MAC < {UNCERTAIN_MAC:g}; from {where[0]:g} rpm): a finer --rpm step resolves it")
     return "\n".join(lines)
 
 
@@ -337,12 +374,11 @@ def cmd_campbell(args) -> int:
     """Campbell diagram of a drive: campbell.json, campbell.png and the crossings."""
     from beltjax import campbell
     from beltjax.plotting import plot_campbell
+    from beltjax.progress import counter
 
     scene = _load(args.scene)
     out = _out_dir(args.out)
-
-    def progress(done, total):
-        print(f"campbell: {done}/{total} speeds", file=sys.stderr, flush=True)
+    progress = counter("campbell", "speeds", with_bar=False)
 
     c = _analysis(campbell.analyse_campbell, scene, args.rpm, orders=args.orders, n_modes=args.modes,
                   progress=progress)
@@ -350,18 +386,14 @@ def cmd_campbell(args) -> int:
     plot_campbell(c, out / "campbell.png", title=_title(scene, args.scene))
     print(f"Campbell diagram of {_title(scene, args.scene)}")
     print(campbell_summary(c))
-    print(f"wrote {out / 'campbell.json'} and {out / 'campbell.png'}")
     return 0
 
 
 def simulation_table(res, summary) -> str:
     """Mean, peak-to-peak and dominant frequencies of the main channels of a simulation."""
     m = res.meta
-    lines = [f"{m['fidelity']} model, {m['n_independent']} independent coordinates; solver {m['solver']}, "
-             f"dt {m['dt_s']:.3g} s, {m['steps']} steps; t = 0 to {m['t_end_s']:g} s; "
-             f"wall {m['wall_s']:.1f} s (first chunk with compilation {m['first_chunk_s']:.1f} s)",
-             "", f"{'channel':<34} {'mean':>10} {'peak-peak':>10}  dominant [Hz]"]
     units = summary["units"]
+    rows = []
     for name in ("span_tensions_N", "span_forces_N", "hub_force_magnitudes_N", "pulley_speeds_rpm",
                  "arm_angle_deg", "spring_moment_Nm", "drive_torques_Nm", "node_displacements_m"):
         if name not in summary["channels"]:
@@ -369,7 +401,14 @@ def simulation_table(res, summary) -> str:
         for col, st in summary["channels"][name].items():
             label = f"{name.rsplit('_', 1)[0].replace('_', ' ')}: {col}" if col != name else name
             dom = ", ".join(f"{f:.4g}" for f in st["dominant_hz"]) or "-"
-            lines.append(f"{label[:34]:<34} {st['mean']:>10.4g} {st['peak_to_peak']:>10.4g}  {dom}  [{units[name]}]")
+            rows.append((" ".join(label.split()), st, dom, units[name]))
+    width = max([len("channel")] + [len(r[0]) for r in rows])  # the longest channel name, never cut
+    lines = [f"{m['fidelity']} model, {m['n_independent']} independent coordinates; solver {m['solver']}, "
+             f"dt {m['dt_s']:.3g} s, {m['steps']} steps; t = 0 to {m['t_end_s']:g} s; "
+             f"wall {m['wall_s']:.1f} s (first chunk with compilation {m['first_chunk_s']:.1f} s)",
+             "", f"{'channel':<{width}} {'mean':>10} {'peak-peak':>10}  dominant [Hz]"]
+    for label, st, dom, unit in rows:
+        lines.append(f"{label:<{width}} {st['mean']:>10.4g} {st['peak_to_peak']:>10.4g}  {dom}  [{unit}]")
     return "\n".join(lines)
 
 
@@ -395,10 +434,8 @@ def cmd_simulate(args) -> int:
                  settle_fraction=args.settle)
     print(f"transient of {title}")
     print(simulation_table(res, summary))
-    for record in res.meta["slack_spans"]:
-        print(transient.slack_warning(record))
-    print(f"wrote {out / 'simulation.npz'}, {out / 'simulation.json'}, {out / 'simulation.png'} "
-          f"and {out / 'spectra.png'}")
+    for line in transient.run_warnings(res.meta):  # slack spans, spans past the critical speed, forcing
+        print(line)
     return 0
 
 
@@ -447,12 +484,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="beltjax", description="Belt-drive simulation with ANCF belt spans (JAX).")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
     sp = sub.add_parser("span", help="natural frequencies and modes of one tensioned (moving) belt span")
-    sp.add_argument("--length", type=_number("length", True, False), required=True, help="span length [m]")
-    sp.add_argument("--tension", type=_number("tension", True, False), required=True, help="static tension [N]")
-    sp.add_argument("--speed", type=_number("speed"), default=0.0, help="belt speed [m/s] (default 0)")
-    sp.add_argument("--EA", type=_number("EA", True, False), required=True, help="axial stiffness [N]")
-    sp.add_argument("--EI", type=_number("EI", True, False), required=True, help="bending stiffness [N m^2]")
-    sp.add_argument("--rhoA", type=_number("rhoA", True, False), required=True,
+    # finiteness and ranges: beltjax.span.check_arguments in cmd_span (the API's messages)
+    sp.add_argument("--length", type=_number("length", True, False, False), required=True, help="span length [m]")
+    sp.add_argument("--tension", type=_number("tension", True, False, False), required=True, help="static tension [N]")
+    sp.add_argument("--speed", type=_number("speed", finite=False), default=0.0, help="belt speed [m/s] (default 0)")
+    sp.add_argument("--EA", type=_number("EA", True, False, False), required=True, help="axial stiffness [N]")
+    sp.add_argument("--EI", type=_number("EI", True, False, False), required=True, help="bending stiffness [N m^2]")
+    sp.add_argument("--rhoA", type=_number("rhoA", True, False, False), required=True,
                     help="mass per unit unstretched length [kg/m]")
     sp.add_argument("--elements", type=_elements, default=16, help="ANCF elements (default 16)")
     sp.add_argument("--bc", choices=["pinned", "clamped"], default="pinned", help="end condition (default pinned)")
@@ -468,7 +506,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     mo = sub.add_parser("modal", help="natural frequencies and mode shapes of a drive")
     mo.add_argument("scene", help="scene file (TOML)")
-    mo.add_argument("--modes", type=_modes, default=20, help="modes reported in the table and modal.json (default 20)")
+    mo.add_argument("--modes", type=_modes, default=20,
+                    help="modes reported in the table and modal.json, and drawn in modes.png (its flexible ones, "
+                         "at most 24) (default 20)")
     mo.add_argument("--rpm", type=_number("rpm", True), default=None,
                     help="drive pulley speed [rpm] (default: the scene's speed_rpm)")
     mo.add_argument("--out", default="out", help="output directory (default ./out)")
@@ -487,11 +527,13 @@ def build_parser() -> argparse.ArgumentParser:
     si = sub.add_parser("simulate", help="transient of a drive (time histories, spectra)")
     si.add_argument("scene", help="scene file (TOML)")
     si.add_argument("--t-end", dest="t_end", type=_number("t-end", True, False), required=True,
-                    help="simulated time [s]")
+                    help="simulated time [s] (at most 20 million time steps)")
     si.add_argument("--dt", type=_number("dt", True, False), default=None,
-                    help="time step [s] (default: the scene's [simulation] dt_s, else 1e-4)")
+                    help="time step [s] (default: the scene's [simulation] dt_s, else 1e-4); a fixed step must "
+                         "sample every forcing frequency more than twice a period (a warning below 20 times)")
     si.add_argument("--output-dt", dest="output_dt", type=_number("output-dt", True, False), default=None,
-                    help="output interval [s] (default 5e-4 hybrid, 1e-3 rotational)")
+                    help="output interval [s] (default 5e-4 hybrid, 1e-3 rotational); not below a fixed step, "
+                         "and below half the period of every forcing")
     si.add_argument("--settle", type=_fraction, default=0.0,
                     help="fraction of the run left out of the summary and spectra (start-up), default 0")
     si.add_argument("--out", default="out", help="output directory (default ./out)")
@@ -519,7 +561,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``beltjax`` command; returns the exit status."""
+    """Entry point of the ``beltjax`` command; returns the exit status.
+
+    A command writes its files into a temporary folder next to ``--out`` and they are moved
+    into ``--out`` only when it has finished without an error (:mod:`beltjax.outputs`); then
+    ``wrote ...`` lists their final paths.  A failing command leaves ``--out`` as it was (not
+    created when it did not exist).  Any error ends an open progress line first, so that
+    ``beltjax: error: ...`` starts a line of its own.
+    """
+    from beltjax import outputs, progress
+
     debug = os.environ.get("BELTJAX_DEBUG") == "1"
     try:
         args = build_parser().parse_args(argv)
@@ -529,18 +580,24 @@ def main(argv=None) -> int:
             if getattr(args, name, None) == "":
                 raise InputError(f"argument {name}: empty file name")
         _enable_compile_cache()
-        return args.func(args)
+        with outputs.staged(args.out) as stage:
+            code = args.func(args)
+        progress.end_line()
+        if stage.written:
+            print(outputs.written_line(stage.written), flush=True)
+        return code
     except BeltjaxError as exc:
-        print(f"beltjax: error: {exc}", file=sys.stderr)
+        progress.message(f"beltjax: error: {exc}")
         return 2
     except KeyboardInterrupt:
-        print("beltjax: interrupted", file=sys.stderr)
+        progress.message("beltjax: interrupted")
         return 130
     except Exception as exc:  # never a traceback for the user
+        progress.end_line()
         if debug:
             raise
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"beltjax: error: {msg}", file=sys.stderr)
+        progress.message(f"beltjax: error: {msg}")
         return 1
 
 

@@ -151,6 +151,46 @@ def _modes_core(M, G, K, n_rigid: int, gyroscopic: bool, v0=None):
     return ok, f, shapes
 
 
+def tracking_modes(M, G, K, n_rigid: int, gyroscopic: bool, v0, k: int):
+    """The lowest ``k`` modes with shapes for mode tracking, at the cost of the frequencies alone.
+
+    Returns ``(stable, freqs (k,) Hz ascending, X (n, c) complex shapes, owner (c,) int)``: column
+    j of X belongs to mode owner[j] (one column per mode without the gyroscopic terms, two with
+    them: :func:`beltjax.modal.skew_mode_planes`; the columns of repeated modes together span
+    their eigenspace, see :func:`beltjax.mode_tracking.mode_basis`).  Arguments as
+    :func:`frequencies_from_matrices`, whose frequencies these are.  Pure JAX (jit, vmap).
+    """
+    if not gyroscopic:
+        omega2, V = modal.symmetric_modes(M, K)
+        f = (jnp.sqrt(jnp.clip(omega2, 0.0, None)) / (2 * jnp.pi)).at[:n_rigid].set(0.0)
+        return jnp.all(omega2[n_rigid:] > 0), f[:k], V[:, :k].astype(jnp.complex128), jnp.arange(k)
+    T, Mz, Gz, Kz = _project_rigid(M, G, K, n_rigid, v0)
+    ok, omega, Z = modal.skew_mode_planes(0.5 * (Mz + Mz.T), 0.5 * (Gz - Gz.T), 0.5 * (Kz + Kz.T), k - n_rigid)
+    f = jnp.concatenate([jnp.zeros(n_rigid), omega[: k - n_rigid] / (2 * jnp.pi)])
+    rig = (v0 / jnp.max(jnp.abs(v0)))[:, None] if n_rigid else jnp.zeros((M.shape[0], 0))
+    X = jnp.concatenate([rig.astype(jnp.complex128), T @ Z], axis=1)
+    owner = jnp.concatenate([jnp.zeros(n_rigid, int), n_rigid + jnp.repeat(jnp.arange(k - n_rigid), 2)])
+    return ok, f, X, owner
+
+
+def tracking_shapes(scene: Scene, qi, inst, speed, k: int, gyroscopic: bool, full: bool = True):
+    """Modes about the equilibrium (qi, inst) at belt speed ``speed`` [m/s] for tracking (pure JAX).
+
+    Returns a dict: stable, freqs (k,) [Hz], owner (c,), W (n, c) = L^T X with M = L L^T (the
+    mass-whitened shapes: W_a^H W_b = x_a^H M x_b, the inner product of a mass-weighted MAC),
+    and with ``full`` the full-coordinate shapes V (n_full, c) = J X and :func:`label_arrays`
+    (what :func:`label_full` needs to label them).
+    """
+    M, G, K = linearise(qi, scene, inst, speed)
+    stable, f, X, owner = tracking_modes(M, G, K, n_rigid_modes(scene), gyroscopic, k=k,
+                                         v0=rigid_mode(scene, inst))
+    out = dict(stable=stable, freqs=f, owner=owner, W=jnp.linalg.cholesky(M).T @ X)
+    if full:
+        J = jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(qi)
+        out.update(V=J @ X, **label_arrays(scene, inst))
+    return out
+
+
 @partial(jax.jit, static_argnames=("gyroscopic",))
 def modes_at(scene: Scene, qi, inst, speed, gyroscopic: bool):
     """Modes about a given equilibrium (qi, inst) at belt speed ``speed`` [m/s], jitted.
@@ -238,13 +278,25 @@ def energy_shares(shapes, qi, scene: Scene, inst, J=None):
     """
     if J is None:
         J = jax.jacfwd(lambda x: drive.full_coordinates(x, scene, inst))(jnp.asarray(qi))
-    J = np.asarray(J)
-    V = J @ np.asarray(shapes)  # full-coordinate shapes (complex)
+    V = np.asarray(J) @ np.asarray(shapes)  # full-coordinate shapes (complex)
+    return full_energy_shares(V, scene, label_arrays(scene, inst))
+
+
+def label_arrays(scene: Scene, inst) -> dict:
+    """What labels need of an equilibrium besides the shapes (pure JAX): element lengths Le (m)
+    per span, span tangents, and the bodies' mass diagonal body_mass (kg, kg m^2)."""
+    return dict(Le=drive.element_length(scene, inst), tangent=inst.span_tangent,
+                body_mass=drive.body_masses(scene, inst))
+
+
+def full_energy_shares(V, scene: Scene, arrays: dict):
+    """:func:`energy_shares` of full-coordinate shapes V (n_full, n_modes) with :func:`label_arrays`."""
+    V = np.asarray(V)
     n = len(scene.route.order)
     N = drive.span_elements(scene)
     ns = 4 * (N + 1)
-    Le = np.asarray(drive.element_length(scene, inst))
-    t = np.asarray(inst.span_tangent)
+    Le = np.asarray(arrays["Le"])
+    t = np.asarray(arrays["tangent"])
     nrm = np.stack([-t[:, 1], t[:, 0]], axis=1)
     shares, trans, longi = {}, [], []
     names = drive.span_names(scene)
@@ -258,7 +310,7 @@ def energy_shares(shapes, qi, scene: Scene, inst, J=None):
         trans.append(_fine_profile(ut, Le[s], N))
         longi.append(_fine_profile(ul, Le[s], N))
     B = V[n * ns :].reshape(-1, 3, V.shape[1])
-    mass = np.asarray(drive.body_masses(scene, inst)).reshape(-1, 3)
+    mass = np.asarray(arrays["body_mass"]).reshape(-1, 3)
     for b, name in enumerate(drive.body_names(scene)):
         shares[name] = np.real(np.einsum("km,k,km->m", B[b].conj(), mass[b], B[b]))
     total = sum(shares.values())
@@ -274,6 +326,17 @@ def label_modes(freqs, shapes, qi, scene: Scene, inst, J=None):
     half-waves of the dominant span's profile; rotational orders count modes.
     """
     shares, trans, longi = energy_shares(shapes, qi, scene, inst, J)
+    return _labels(freqs, shares, trans, longi, scene), shares
+
+
+def label_full(freqs, V, scene: Scene, arrays: dict):
+    """:func:`label_modes` of full-coordinate shapes V (n_full, n_modes) with :func:`label_arrays`
+    (e.g. from :func:`tracking_shapes`, computed under jit): (labels, shares dict)."""
+    shares, trans, longi = full_energy_shares(V, scene, arrays)
+    return _labels(freqs, shares, trans, longi, scene), shares
+
+
+def _labels(freqs, shares, trans, longi, scene: Scene) -> list[str]:
     names = drive.span_names(scene)
     bodies = drive.body_names(scene)
     labels, n_rot = [], 0
@@ -298,7 +361,7 @@ def label_modes(freqs, shapes, qi, scene: Scene, inst, J=None):
         k = _half_waves(prof[m, order[0]])
         word = "transverse" if kind == 0 else "longitudinal"
         labels.append(f"{_ordinal(k)} {word} {' + '.join(who)}")
-    return labels, shares
+    return labels
 
 
 # --------------------------------------------------------------------------- user-facing result
@@ -311,7 +374,10 @@ class ModalResult:
     frequencies_hz ascending (rigid modes included, 0 Hz); labels; stable;
     unstable_eigenvalues (1/s) when not stable; energy_shares: name -> per-mode
     kinetic-energy share; speed_m_s; mode_shapes: (n_independent, n_modes),
-    real parts, unit max; statics: the :class:`beltjax.statics.StaticResult`.
+    real parts, unit max; statics: the :class:`beltjax.statics.StaticResult`;
+    unstable_reason: why the drive is reported unstable (None when stable): past the
+    critical speed (a span's force on the pulleys <= 0, :mod:`beltjax.critical`), or
+    modes that grow.
     """
 
     frequencies_hz: np.ndarray
@@ -323,6 +389,7 @@ class ModalResult:
     n_independent: int
     mode_shapes: np.ndarray = field(repr=False)
     statics: object = field(repr=False, default=None)
+    unstable_reason: str | None = None
 
     def to_json(self, n_modes: int | None = None) -> dict:
         """modal.json contents (first n_modes modes, all by default)."""
@@ -330,6 +397,7 @@ class ModalResult:
         return {
             "speed_m_s": self.speed_m_s,
             "stable": self.stable,
+            "unstable_reason": self.unstable_reason,
             "n_independent_coordinates": self.n_independent,
             "frequencies_hz": [float(x) for x in self.frequencies_hz[:k]],
             "labels": self.labels[:k],
@@ -338,15 +406,27 @@ class ModalResult:
         }
 
 
+#: why a drive whose linearised modes grow is reported unstable
+GROWING = ("the linearised drive has modes that grow (or that only gyroscopic coupling holds, "
+           "which any damping destroys): no natural frequencies")
+
+
 def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     """Natural frequencies, labelled mode shapes and stability of a drive at belt speed ``speed`` (m/s).
 
     Runs the statics first (its one-line errors apply).  At a speed with the
     ``transport`` effect the gyroscopic problem is solved; an unstable drive
-    gets ``stable=False``, its unstable eigenvalues and no frequencies.
+    gets ``stable=False``, its unstable eigenvalues, no frequencies and the reason
+    (``unstable_reason``).  A drive past its critical speed (a span's force on the
+    pulleys <= 0: :mod:`beltjax.critical`) is unstable whatever the eigenvalues say:
+    the rotational model's massless spans, for one, keep positive stiffness there.  The
+    scene and the speed are checked as in :func:`beltjax.statics.analyse_statics`.
     """
-    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
-    st = statics.analyse_statics(scene, v)
+    from beltjax import validate
+
+    validate.check_scene(scene)
+    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
+    st = statics.analyse_statics(scene, v, allow_supercritical=True)
     gyro = scene.model.has("transport") and v != 0.0
     qi = jnp.asarray(st.qi)
     out = modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
@@ -354,6 +434,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     n = drive.n_independent(scene)
     freqs = np.asarray(out["freqs"])
     shapes = np.asarray(out["shapes"])
+    unstable = np.zeros(0, complex)
     if not stable:
         # K is not positive definite on the flexible subspace: the companion form decides
         # there (gyroscopic stabilisation counts as unstable, see beltjax.modal)
@@ -368,10 +449,13 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
             rig = (v0 / np.max(np.abs(v0)))[:, None]
         ok, f, Z, unstable = modal.companion_modes(T.T @ M @ T, T.T @ G @ T, T.T @ K @ T)
         if not ok:
-            return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st)
+            return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st,
+                               st.supercritical or GROWING)
         stable = True  # K semi-definite up to round-off (e.g. exactly at a critical speed)
         freqs = np.concatenate([np.zeros(nr), f])
         shapes = np.concatenate([rig.astype(complex), T @ Z], axis=1)
+    if st.supercritical is not None:
+        return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st, st.supercritical)
     labels, shares = label_modes(freqs, shapes, qi, scene, st.inst, out["J"])
     Vr = np.real(shapes * np.exp(-1j * np.angle(np.sum(shapes**2, axis=0)) / 2))
     Vr = Vr / np.maximum(np.max(np.abs(Vr), axis=0, keepdims=True), 1e-300)

@@ -27,7 +27,7 @@ class BeltjaxError(ValueError):
 
     def __init__(self, message: str = "", key: str = ""):
         msg = one_line(message)
-        if key and not msg.startswith(str(key)):
+        if key and not (msg == str(key) or msg.startswith(f"{key}:") or msg.startswith(f"{key} ")):
             msg = f"{key}: {msg}" if msg else str(key)
         super().__init__(msg)
         self.key = key

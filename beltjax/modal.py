@@ -110,6 +110,30 @@ def skew_frequencies(M, G, K):
     return ok, omega
 
 
+def skew_mode_planes(M, G, K, k: int):
+    """The lowest ``k`` modes of M x'' + G x' + K x = 0 (K, M > 0) with shapes, at the cost of
+    :func:`skew_frequencies` (a real ``eigh`` of S^T S, vectors included, instead of the complex
+    ``eigh`` of i S).
+
+    Each circular frequency omega is an eigenvalue of S^T S twice, its eigenvectors a spanning the
+    real plane {Re u, Im u} of the mode's state eigenvector u (S u = i omega u); u = a - i S a / omega
+    for any a in that plane.  Returns ``(ok, omega (n,) rad/s ascending, X (n, 2k) complex
+    displacement shapes)``: columns 2j and 2j+1 come from the two vectors of mode j's plane, so
+    they are the same mode up to a complex factor; where frequencies repeat, the columns of the
+    repeated modes together span their eigenspace (pick a basis afterwards: several real vectors
+    of one eigenspace may give the same complex direction).  ok as in :func:`skew_frequencies`.
+    """
+    n = M.shape[0]
+    S, Lb, finite = _skew_matrix(M, G, K)
+    w2, A = jnp.linalg.eigh(S.T @ S)
+    omega = jnp.sqrt(jnp.clip(w2[0::2], 0.0, None))
+    a = A[:, : 2 * k]
+    w = jnp.repeat(omega[:k], 2)
+    z = a - 1j * (S @ a) / jnp.where(w > 0, w, 1.0)
+    Z = jax.scipy.linalg.solve_triangular(Lb.T.astype(z.dtype), z, lower=False)
+    return finite & jnp.all(w2 > 0), omega, Z[:n]
+
+
 def gyroscopic_modes(M, G, K):
     """Modes of M x'' + G x' + K x = 0 (G skew): ``(stable, freqs_hz, shapes, unstable)``.
 

@@ -13,7 +13,16 @@ Units are those of the scene file (SI; ``_deg`` degrees, ``_rpm`` rpm).  :func:`
 returns a new scene (pure, so it runs under ``jit``, ``vmap`` and ``grad``: gradients reach
 any parameter).  The belt is given by exactly one of ``static_tension`` and ``length``;
 setting the other one switches the scene to it (the installation then solves for the first).
-A path that names nothing is a :class:`ParameterError` naming the path and the choices.
+A path that names nothing is a :class:`ParameterError` naming the path and the choices, and
+so is a speed of a pulley that is not the drive pulley (only the drive pulley takes a speed,
+and only a driven pulley a prescribed acceleration or fluctuation: the scene file's rule).
+
+With concrete values (not under ``jit``, ``vmap`` or ``grad``) :func:`set_value` and
+:func:`set_values` check the new scene as a scene file is checked: each value against its
+:mod:`beltjax.schema` range, and the whole drive with :func:`beltjax.validate.scene_problem`
+(overlapping pulleys, degenerate wraps, the derived float64 limits); a problem is a
+:class:`ParameterError` naming the path, e.g. ``belt.EI: must lie in [0, 100000] N m^2 (...),
+got 1e+20``.  Traced values are never checked (no Python branching on them).
 """
 
 from __future__ import annotations
@@ -21,8 +30,11 @@ from __future__ import annotations
 from typing import Mapping
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 
+from beltjax import schema, validate
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 
@@ -31,6 +43,9 @@ _VECTORS = {"pulley": ("center", "cm_offset"), "tensioner": ("pivot",)}
 _BELT = ("EA", "EI", "rhoA", "CA", "static_tension", "length")
 _PULLEY = ("radius", "mass", "inertia", "speed_rpm", "acceleration_rpm_per_s",
            "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "bearing_damping")
+#: pulley keys of the drive pulley only (its speed) and of driven pulleys only (prescribed motion)
+_DRIVE_ONLY = ("speed_rpm",)
+_DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
 _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_mass",
               "pulley_inertia", "spring_stiffness", "spring_preload_deg", "arm_cm_distance", "damping")
 
@@ -43,12 +58,24 @@ class ParameterError(BeltjaxError):
         self.path = path
 
 
+def _motion_rule(scene: Scene, name: str, key: str) -> str | None:
+    """Why pulley ``name`` cannot take the prescribed-motion ``key``, or None."""
+    drive = validate.drive_pulley_name(scene)
+    if key in _DRIVE_ONLY and name != drive:
+        return (f"only the drive pulley takes a speed: a driven pulley (driven = true), else the first pulley "
+                f"(here {drive!r})")
+    if key in _DRIVEN_ONLY and not scene.pulley(name).driven:
+        return "only a driven pulley (driven = true) takes a prescribed motion"
+    return None
+
+
 def paths(scene: Scene) -> list[str]:
-    """Every scalar parameter path of ``scene`` (see the module docstring)."""
+    """Every scalar parameter path of ``scene`` (see the module docstring): a speed only on the
+    drive pulley, an acceleration or fluctuation only on driven pulleys."""
     out = [f"belt.{k}" for k in _BELT]
     for p in scene.pulleys:
         out += [f"pulley.{p.name}.{v}.{c}" for v in _VECTORS["pulley"] for c in _COMPONENTS]
-        out += [f"pulley.{p.name}.{k}" for k in _PULLEY]
+        out += [f"pulley.{p.name}.{k}" for k in _PULLEY if _motion_rule(scene, p.name, k) is None]
     if scene.tensioner is not None:
         out += [f"tensioner.pivot.{c}" for c in _COMPONENTS]
         out += [f"tensioner.{k}" for k in _TENSIONER]
@@ -80,17 +107,57 @@ def _resolve(scene: Scene, path: str):
     if len(rest) == 2 and rest[0] in vectors and rest[1] in _COMPONENTS:
         return owner, _COMPONENTS[rest[1]], rest[0]
     if len(rest) == 1 and rest[0] in scalars:
+        why = _motion_rule(scene, parts[1], rest[0]) if head == "pulley" else None
+        if why is not None:
+            raise ParameterError(path, why)
         return owner, None, rest[0]
     keys = [f"{v}.{c}" for v in vectors for c in _COMPONENTS] + list(scalars)
     raise ParameterError(path, f"unknown key {'.'.join(rest)!r}; choose one of {', '.join(keys)}")
 
 
 def check(scene: Scene, path: str) -> str:
-    """``path`` if it names a scalar of ``scene`` (else :class:`ParameterError`)."""
+    """``path`` if it names a scalar of ``scene`` that can be set (else :class:`ParameterError`)."""
     owner, _, name = _resolve(scene, path)
     if owner(scene) is None:
         raise ParameterError(path, "the scene has no such part")
+    if name not in ("static_tension", "length") and getattr(owner(scene), name) is None:
+        raise ParameterError(path, "this parameter is not set in the scene (give it in the scene file first)")
     return path
+
+
+def check_value(path: str, value) -> None:
+    """:class:`ParameterError` if a concrete ``value`` lies outside the range of ``path``
+    (:mod:`beltjax.schema`); nothing for a traced value."""
+    if isinstance(value, jax.core.Tracer):
+        return
+    f = schema.field(path)
+    if f is not None and isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**1023:
+        raise ParameterError(path, schema.problem(f, value))  # beyond float64
+    v = np.ravel(np.asarray(value, dtype=float))
+    if f is not None and v.size:
+        bad = schema.bad(f, v)
+        if bad.any():
+            raise ParameterError(path, schema.problem(f, v[int(np.argmax(bad))]))
+
+
+def _concrete(values: Mapping[str, object]) -> bool:
+    return not any(isinstance(v, jax.core.Tracer) for v in values.values())
+
+
+def _checked(scene: Scene, values: Mapping[str, object]) -> Scene:
+    """``scene`` (with ``values`` set, each already checked by :func:`check_value`) if it passes
+    the scene file's checks of the whole drive; concrete values only."""
+    if not _concrete(values) or validate.is_traced(scene):
+        return scene
+    if any(np.ndim(v) for v in values.values()):
+        return scene  # a batch of values: checked case by case by beltjax.validate.case_status
+    problem = validate.scene_problem(scene)
+    if problem is not None:
+        key, msg = problem
+        _, keys = validate.table(scene)
+        blame = next((p for p in values if keys.get(p) == key), next(iter(values)))
+        raise ParameterError(blame, msg if keys.get(blame) == key else f"{key}: {msg}")
+    return scene
 
 
 def get_value(scene: Scene, path: str):
@@ -105,7 +172,14 @@ def get_value(scene: Scene, path: str):
 
 
 def set_value(scene: Scene, path: str, value) -> Scene:
-    """A copy of ``scene`` with the scalar at ``path`` set to ``value`` (file units; traceable)."""
+    """A copy of ``scene`` with the scalar at ``path`` set to ``value`` (file units; traceable).
+
+    A concrete value is checked with the new scene (see the module docstring)."""
+    check_value(path, value)
+    return _checked(_set(scene, path, value), {path: value})
+
+
+def _set(scene: Scene, path: str, value) -> Scene:
     owner, comp, name = _resolve(scene, path)
     value = jnp.asarray(value, dtype=jnp.float64)
     if name in ("static_tension", "length"):
@@ -122,7 +196,17 @@ def set_value(scene: Scene, path: str, value) -> Scene:
 
 
 def set_values(scene: Scene, values: Mapping[str, object]) -> Scene:
-    """``scene`` with several parameters set: {path: value} (file units; traceable)."""
+    """``scene`` with several parameters set: {path: value} (file units; traceable); concrete
+    values are checked together, with the new scene (see the module docstring)."""
     for path, value in values.items():
-        scene = set_value(scene, path, value)
-    return scene
+        check_value(path, value)
+    for path, value in values.items():
+        scene = _set(scene, path, value)
+    return _checked(scene, values) if values else scene
+
+
+def unit(path: str) -> str:
+    """The unit of the parameter at ``path`` as the scene file gives it (e.g. "m", "N m^2"),
+    "" for a path that names no known parameter (:mod:`beltjax.schema`)."""
+    f = schema.field(str(path))
+    return f.unit if f is not None else ""

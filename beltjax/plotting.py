@@ -1,16 +1,125 @@
-"""Figures (matplotlib, Agg, written to files, no screen needed): span mode shapes, a drive's
-static layout, its mode shapes, and Campbell diagrams."""
+"""Figures written to PNG files: span mode shapes, a drive's static layout, its mode shapes
+and Campbell diagrams (time histories and spectra of simulations: :mod:`beltjax.plot_transient`,
+re-exported here).
+
+Figures are matplotlib ``Figure`` objects saved directly: no pyplot, no backend switched, no
+global setting (rcParams) changed, so importing beltjax leaves a notebook's or an
+application's matplotlib as it was.  Every piece of user text (pulley, span and mode names,
+descriptions, file names, parameter paths, dataset labels) enters a figure through
+:func:`literal` and is drawn as written, never read as mathtext.
+"""
 
 from __future__ import annotations
 
+import textwrap
+import unicodedata
+import warnings
+
 import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from beltjax import ancf
+from beltjax.span import element_index
 
-from beltjax import ancf  # noqa: E402
-from beltjax.span import element_index  # noqa: E402
+#: most mode-shape panels in one modes.png (a larger --modes is cut to this, with a note)
+MAX_MODE_PANELS = 24
+
+
+# --------------------------------------------------------------------------- text and figures
+
+
+def literal(text, limit: int | None = None) -> str:
+    """``text`` (any object, as ``str``) made safe to draw as written.
+
+    Every ``$`` is escaped (matplotlib would read the text between two of them as mathtext
+    and fail on ``$x^$``), control characters other than newline and tab are shown as
+    ``\\xNN``, a leading ``_`` is kept visible in legends (matplotlib hides labels that
+    start with one), and text longer than ``limit`` characters is shortened in the middle
+    with ``...``.  Backslashes, ``%``, braces and non-ASCII characters need nothing.
+    """
+    s = str(text)
+    if any(unicodedata.category(c) == "Cc" and c not in "\n\t" for c in s):
+        s = "".join(f"\\x{ord(c):02x}" if unicodedata.category(c) == "Cc" and c not in "\n\t" else c for c in s)
+    if limit is not None and len(s) > limit:
+        keep = max(limit - 3, 2)
+        s = s[: (keep + 1) // 2] + "..." + s[len(s) - keep // 2:]
+    s = s.replace("$", r"\$")
+    return " " + s if s.startswith("_") else s
+
+
+def literal_wrapped(text, width: int = 80, max_lines: int | None = 4) -> str:
+    """User text wrapped at ``width`` characters (newlines joined first) on at most ``max_lines``
+    lines (the last one ending in "..." when cut; None: all), then :func:`literal`."""
+    if not text:
+        return ""
+    s = str(text)
+    if max_lines is not None:  # words longer than the width are broken by wrap(): bound them first
+        s = s[: width * max_lines + 1]
+    return literal("\n".join(textwrap.wrap(s, width, max_lines=max_lines, placeholder=" ...")))
+
+
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize, **kwargs):
+    """``(Figure, axes)`` as ``pyplot.subplots`` gives them, without pyplot (nothing global)."""
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
+
+
+def save(fig, path, dpi: int = 110) -> None:
+    """Lay ``fig`` out (tight) and write it to ``path`` (PNG).  A character the font lacks
+    (e.g. CJK in DejaVu Sans) is drawn as a box without a warning per glyph."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Glyph .* missing from", category=UserWarning)
+        warnings.filterwarnings("ignore", message="Tight layout not applied", category=UserWarning)
+        fig.tight_layout()
+        fig.savefig(path, dpi=dpi)
+
+
+def colormap(n_lines: int):
+    """Colour of line j among n_lines (tab10, tab20 beyond 10 lines, cycled)."""
+    cmap = matplotlib.colormaps["tab20" if n_lines > 10 else "tab10"]
+    return lambda j: cmap(j % cmap.N)
+
+
+#: dash patterns of the curves drawn over an earlier one they coincide with
+_OVER = ((0, (5, 4)), (0, (1.5, 2.5)), (0, (7, 3, 1.5, 3)), (0, (3, 5)))
+
+
+def coinciding(series, rtol: float = 3e-3) -> list[int | None]:
+    """For each of several curves (arrays of one shape), the index of an earlier curve it lies
+    on everywhere (within ``rtol`` of the range of all of them: less than a pixel apart in a
+    panel of ordinary size), else None.  Such curves are drawn dashed over the first one, with
+    a note in their legend entry (:func:`overlay_style`), so that neither hides the other."""
+    ys = [np.asarray(y, dtype=float) for y in series]
+    values = [y[np.isfinite(y)] for y in ys]
+    finite = np.concatenate(values) if values else np.zeros(0)
+    if finite.size == 0:
+        return [None] * len(ys)
+    scale = max(float(np.ptp(finite)), 1e-12 * float(np.max(np.abs(finite))), 1e-300)
+    out: list[int | None] = []
+    for j, y in enumerate(ys):
+        hit = None
+        for i in range(j):
+            x = ys[i]
+            if out[i] is not None or x.shape != y.shape or not np.any(np.isfinite(y)):
+                continue
+            fin = np.isfinite(x)
+            if np.array_equal(fin, np.isfinite(y)) and np.all(np.abs(x[fin] - y[fin]) <= rtol * scale):
+                hit = i
+                break
+        out.append(hit)
+    return out
+
+
+def overlay_style(over: list[int | None], labels, j: int) -> tuple[object, str]:
+    """(line style, legend note) of curve j given :func:`coinciding`'s answer: solid and no
+    note, or a dash pattern and `` (on <first curve's label>)``."""
+    i = over[j]
+    if i is None:
+        return "-", ""
+    k = sum(1 for o in over[:j] if o is not None)
+    return _OVER[k % len(_OVER)], f" (on {labels[i]})"
 
 
 def span_field(coords, n_elements: int, L0: float, samples: int = 9):
@@ -37,7 +146,7 @@ def plot_span_modes(result, path, n_modes: int = 6):
     labels = result.labels
     picks = [i for i, lab in enumerate(labels) if lab.endswith("transverse")][: max(n_modes - 1, 1)]
     picks += [i for i, lab in enumerate(labels) if lab.endswith("longitudinal")][:1]
-    fig, (ax, axl) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, height_ratios=[3, 1.4])
+    fig, (ax, axl) = subplots(2, 1, figsize=(8, 6), sharex=True, height_ratios=[3, 1.4])
     if not result.stable:
         ax.text(0.5, 0.5, "unstable: past the critical speed\nno natural frequencies", ha="center",
                 va="center", transform=ax.transAxes, fontsize=13, color="crimson")
@@ -56,9 +165,7 @@ def plot_span_modes(result, path, n_modes: int = 6):
         a.axhline(0, color="k", lw=0.5)
         if a.lines[1:]:
             a.legend(fontsize=8, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
 
 
 # --------------------------------------------------------------------------- drives
@@ -92,21 +199,22 @@ def _drive_extent(centers, radii):
 
 
 def _draw_pulleys(ax, scene, centers, radii, angles=None, color="0.25", lw=1.5, ls="-", names=True,
-                  fill=True):
-    """Pulleys as circles (filled lightly), optional spoke showing a rotation angle (rad), names."""
+                  fill=True, fontsize=8, limit=40):
+    """Pulleys as circles (filled lightly), optional spoke showing a rotation angle (rad), names
+    (drawn literally, below the centre)."""
     order = scene.route.order
     for i, name in enumerate(order):
         c, r = np.asarray(centers[i]), float(radii[i])
         if fill:
-            ax.add_patch(plt.Circle(c, r, facecolor="0.93", edgecolor="none", zorder=1))
-        ax.add_patch(plt.Circle(c, r, fill=False, edgecolor=color, lw=lw, ls=ls, zorder=2))
+            ax.add_patch(Circle(c, r, facecolor="0.93", edgecolor="none", zorder=1))
+        ax.add_patch(Circle(c, r, fill=False, edgecolor=color, lw=lw, ls=ls, zorder=2))
         ax.plot(*c, marker="+", color=color, ms=6, zorder=3)
         if angles is not None:
             a = float(angles[i])
             ax.plot([c[0], c[0] + r * np.cos(a)], [c[1], c[1] + r * np.sin(a)], color=color, lw=lw, zorder=3)
         if names:
-            ax.annotate(name, c, xytext=(0, -10), textcoords="offset points", ha="center", va="top", fontsize=8,
-                        color="0.15", zorder=6)
+            ax.annotate(literal(name, limit), c, xytext=(0, -10), textcoords="offset points", ha="center", va="top",
+                        fontsize=fontsize, color="0.15", zorder=6)
 
 
 def _draw_arm(ax, scene, idler_center, color="tab:brown", label=None, lw=3.0, ls="-"):
@@ -126,12 +234,6 @@ def _span_curves(scene, q, inst):
     return [span_curve(E[s], N, float(Le[s])) for s in range(E.shape[0])]
 
 
-def _wrapped(text: str, width: int = 80) -> str:
-    import textwrap
-
-    return "\n".join(textwrap.wrap(text, width)) if text else ""
-
-
 def plot_layout(scene, result, path):
     """Save the drive drawn to scale at its static state (PNG).
 
@@ -149,7 +251,7 @@ def plot_layout(scene, result, path):
     span_xy = (hi - lo) + 2 * pad
     width = 10.0
     height = float(np.clip(width * span_xy[1] / span_xy[0], 3.0, 10.0)) + 1.3  # room for the title and labels
-    fig, ax = plt.subplots(figsize=(width, height))
+    fig, ax = subplots(figsize=(width, height))
     _draw_pulleys(ax, scene, centers, radii)
     if scene.tensioner is not None:
         _draw_arm(ax, scene, centers[order.index("tensioner")], label="tensioner arm (pivot o)")
@@ -163,7 +265,7 @@ def plot_layout(scene, result, path):
             d = -d
         ha = "center" if abs(d[0]) < 0.4 else ("left" if d[0] > 0 else "right")
         va = "center" if abs(d[1]) < 0.4 else ("bottom" if d[1] > 0 else "top")
-        ax.annotate(f"{name}\nT = {float(T):.1f} N", m, xytext=(26 * d[0], 26 * d[1]), textcoords="offset points",
+        ax.annotate(f"{literal(name, 60)}\nT = {float(T):.1f} N", m, xytext=(26 * d[0], 26 * d[1]), textcoords="offset points",
                     ha=ha, va=va, fontsize=8, color="tab:blue", zorder=8,
                     arrowprops=dict(arrowstyle="-", color="tab:blue", lw=0.6, shrinkA=0, shrinkB=0),
                     bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="tab:blue", alpha=0.85))
@@ -187,17 +289,17 @@ def plot_layout(scene, result, path):
     sub = f"static state at belt speed {result.speed_m_s:g} m/s"
     if result.tensioner_angle_deg is not None:
         sub += f", tensioner arm angle {result.tensioner_angle_deg:.2f} deg"
-    title = _wrapped(scene.description or scene.source or "belt drive", 100)
+    title = literal_wrapped(scene.description or scene.source or "belt drive", 100)
     ax.set_title((title + "\n" if title else "") + sub, fontsize=10)
     ax.legend(fontsize=8, loc="best")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
 
 
-def _mode_displacement(scene, modal_result, m, size, fraction: float = 0.08):
-    """Static full coordinates and the displacement of mode m (J v, by the kinematic map's
-    Jacobian), scaled so that the largest node or pulley-centre displacement is fraction*size."""
+def _mode_displacements(scene, modal_result, modes, size, fraction: float = 0.08):
+    """Static full coordinates q0 and the displacements of the given modes (J v, with J the
+    kinematic map's Jacobian, computed once in one compiled call: under a second for any
+    number of modes), each scaled so that its largest node or pulley-centre displacement is
+    fraction*size.  Returns (q0, [dq per mode])."""
     import jax
     import jax.numpy as jnp
 
@@ -205,18 +307,20 @@ def _mode_displacement(scene, modal_result, m, size, fraction: float = 0.08):
 
     st = modal_result.statics
     inst = st.inst
-    qi0 = jnp.asarray(st.qi)
-    v = jnp.asarray(modal_result.mode_shapes[:, m])
     phi = lambda x: drive.full_coordinates(x, scene, inst)  # noqa: E731
-    q0, dq = jax.jvp(phi, (qi0,), (v,))
-    E, B = drive.split_full(np.asarray(dq), scene)
-    pos = np.concatenate([E.reshape(E.shape[0], -1, 4)[:, :, :2].reshape(-1, 2), B[:, :2]])
-    biggest = float(np.max(np.hypot(pos[:, 0], pos[:, 1])))
-    if not np.isfinite(biggest) or biggest <= 0:
-        return np.asarray(q0), np.zeros_like(np.asarray(q0))
-    # the linearised map (J v): with an exaggerated amplitude the exact map would bend the
-    # tensioner arm's arc while the span nodes move along straight lines
-    return np.asarray(q0), fraction * size / biggest * np.asarray(dq)
+    q0, J = jax.jit(lambda x: (phi(x), jax.jacfwd(phi)(x)))(jnp.asarray(st.qi))
+    q0 = np.asarray(q0)
+    dQ = (np.asarray(J) @ np.asarray(modal_result.mode_shapes)[:, list(modes)]).T
+    out = []
+    for dq in dQ:
+        E, B = drive.split_full(dq, scene)
+        pos = np.concatenate([E.reshape(E.shape[0], -1, 4)[:, :, :2].reshape(-1, 2), B[:, :2]])
+        biggest = float(np.max(np.hypot(pos[:, 0], pos[:, 1])))
+        # the linearised map (J v): with an exaggerated amplitude the exact map would bend the
+        # tensioner arm's arc while the span nodes move along straight lines
+        ok = np.isfinite(biggest) and biggest > 0
+        out.append(fraction * size / biggest * dq if ok else np.zeros_like(q0))
+    return q0, out
 
 
 def flexible_modes(modal_result, n: int = 6, pool: int | None = None):
@@ -228,17 +332,34 @@ def flexible_modes(modal_result, n: int = 6, pool: int | None = None):
     return [i for i in range(k) if np.isfinite(f[i]) and f[i] >= RIGID_HZ][:n]
 
 
-def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | None = None):
-    """Save the first flexible mode shapes of a drive drawn on its layout (PNG).
+def mode_panels(modal_result, n_modes: int = 6, pool: int | None = None) -> tuple[list[int], int]:
+    """(modes drawn by :func:`plot_drive_modes`, flexible modes among the first ``pool``): the
+    first min(n_modes, MAX_MODE_PANELS) flexible modes."""
+    if not modal_result.stable:
+        return [], 0
+    every = flexible_modes(modal_result, len(modal_result.frequencies_hz), pool)
+    return every[: min(n_modes, MAX_MODE_PANELS)], len(every)
 
-    The static drive in grey, the displaced spans and pulleys in colour
-    (displacements scaled to about 8 % of the drive's size; a spoke shows a
-    pulley's rotation).  modal_result: a ModalResult; pool: choose among its
-    first ``pool`` modes only.
+
+def _grid(n: int) -> tuple[int, int]:
+    """(rows, columns) of n panels: up to 3 columns for 9 panels or fewer, else 4."""
+    ncol = min(n, 3 if n <= 9 else 4)
+    return int(np.ceil(n / ncol)), ncol
+
+
+def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | None = None):
+    """Save the first flexible mode shapes of a drive drawn on its layout (PNG); returns the
+    figure (one visible panel per mode drawn, see :func:`mode_panels`).
+
+    The static drive in grey with the pulleys' names, the displaced spans and pulleys in
+    colour (displacements scaled to about 8 % of the drive's size; a spoke shows a pulley's
+    rotation).  modal_result: a ModalResult; n_modes: panels wanted (at most
+    ``MAX_MODE_PANELS``; the title says when more flexible modes were asked for); pool:
+    choose among its first ``pool`` modes only.
     """
     from beltjax import drive
 
-    picks = flexible_modes(modal_result, n_modes, pool) if modal_result.stable else []
+    picks, available = mode_panels(modal_result, n_modes, pool)
     st = modal_result.statics
     inst = st.inst
     centers, radii = np.asarray(inst.centers), np.asarray(inst.radii)
@@ -246,19 +367,19 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
     size = float(np.max(hi - lo))
     pad = 0.15 * size
     n = max(len(picks), 1)
-    ncol = min(3, n)
-    nrow = int(np.ceil(n / ncol))
+    nrow, ncol = _grid(n)
     aspect = float(np.clip((hi - lo + 2 * pad)[1] / (hi - lo + 2 * pad)[0], 0.25, 1.5))
-    panel = 4.6
+    panel = 4.6 if ncol <= 3 else 4.2
     width = max(panel * ncol + 0.4, 9.5)  # room for the title with one panel
-    fig, axes = plt.subplots(nrow, ncol, figsize=(width, (panel * aspect + 1.1) * nrow + 0.7), squeeze=False)
+    fig, axes = subplots(nrow, ncol, figsize=(width, (panel * aspect + 1.1) * nrow + 0.9), squeeze=False)
     axes = axes.ravel()
     static_curves = _span_curves(scene, st.q, inst)
     order = scene.route.order
     n_route = len(order)
 
     def base(ax):
-        _draw_pulleys(ax, scene, centers, radii, angles=np.zeros(n_route), color="0.6", lw=1.0, names=False)
+        _draw_pulleys(ax, scene, centers, radii, angles=np.zeros(n_route), color="0.6", lw=1.0, names=True,
+                      fontsize=7, limit=30)
         for s, c in enumerate(static_curves):
             ax.plot(c[:, 0], c[:, 1], color="0.6", lw=1.2, label="static drive" if s == 0 else None)
         if scene.tensioner is not None:
@@ -276,9 +397,9 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
         msg = ("unstable: past the critical speed\nno natural frequencies" if not modal_result.stable
                else "no flexible modes to show")
         ax.text(0.5, 0.5, msg, ha="center", va="center", transform=ax.transAxes, fontsize=12, color="crimson")
-    for ax, m in zip(axes, picks):
+    q0, shapes = _mode_displacements(scene, modal_result, picks, size) if picks else (None, [])
+    for ax, m, dq in zip(axes, picks, shapes):
         base(ax)
-        q0, dq = _mode_displacement(scene, modal_result, m, size)
         q1 = q0 + dq
         for s, c in enumerate(_span_curves(scene, q1, inst)):
             ax.plot(c[:, 0], c[:, 1], color="tab:blue", lw=1.8, label="mode shape (scaled)" if s == 0 else None)
@@ -287,23 +408,30 @@ def plot_drive_modes(scene, modal_result, path, n_modes: int = 6, pool: int | No
                       names=False, fill=False)
         if scene.tensioner is not None:
             _draw_arm(ax, scene, B[order.index("tensioner"), :2], color="tab:red", lw=2.0)
-        ax.set_title(f"mode {m + 1}: {modal_result.frequencies_hz[m]:.2f} Hz\n{modal_result.labels[m]}", fontsize=9)
+        label = literal_wrapped(modal_result.labels[m], 48, max_lines=2)
+        ax.set_title(f"mode {m + 1}: {modal_result.frequencies_hz[m]:.2f} Hz\n{label}", fontsize=9)
     for ax in axes[len(picks) if picks else 1:]:
         ax.set_visible(False)
     axes[0].legend(fontsize=7, loc="upper right")
-    title = _wrapped(scene.description or scene.source or "belt drive", int(11 * width))
-    fig.suptitle((title + "\n" if title else "")
-                 + _wrapped(f"mode shapes at belt speed {modal_result.speed_m_s:g} m/s (displacements exaggerated; "
-                            "spokes show pulley rotation)", int(11 * width)), fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    chars = int(11 * width)
+    title = literal_wrapped(scene.description or scene.source or "belt drive", chars)
+    shown = ""
+    if picks and available > len(picks):
+        shown = (f"; the first {len(picks)} of {available} flexible modes asked for"
+                 + (f" (at most {MAX_MODE_PANELS} panels)" if len(picks) == MAX_MODE_PANELS else ""))
+    sub = (f"mode shapes at belt speed {modal_result.speed_m_s:g} m/s (displacements exaggerated; "
+           f"spokes show pulley rotation){shown}")
+    fig.suptitle((title + "\n" if title else "") + "\n".join(textwrap.wrap(sub, chars)), fontsize=10)
+    save(fig, path, dpi=110)
+    return fig
 
 
 def plot_campbell(result, path, title: str = "", bands=()):
     """Save a Campbell diagram (PNG): mode frequencies against drive-pulley speed, order lines, crossings.
 
-    result: a CampbellResult.  Rigid-body (0 Hz) modes are not drawn; speeds
+    result: a CampbellResult.  One colour and one legend entry per column (a tracked mode: its
+    label, and where it changes along the curve, the new label and the speed); crossings are
+    dots in their mode's colour.  Rigid-body (0 Hz) modes are not drawn; speeds
     without frequencies (``stable`` false: unstable, or no equilibrium) are shaded.
     bands: speed bands to highlight, each ``(rpm_low, rpm_high, orders, note)``: the band is
     shaded and its order lines [k x rpm/60 Hz] drawn bold inside it, with the note as a label.
@@ -314,13 +442,20 @@ def plot_campbell(result, path, title: str = "", bands=()):
     F = np.asarray(result.frequencies_hz, float)
     finite_max = np.array([np.nanmax(F[:, m]) if np.any(np.isfinite(F[:, m])) else np.nan for m in range(F.shape[1])])
     modes = [m for m in range(F.shape[1]) if np.isfinite(finite_max[m]) and finite_max[m] >= RIGID_HZ]
-    fig, ax = plt.subplots(figsize=(12, 7))
-    cmap = plt.get_cmap("tab20" if len(modes) > 10 else "tab10")
-    colors = {m: cmap(j % cmap.N) for j, m in enumerate(modes)}
-    for m in modes:
-        lab = result.labels[m] if m < len(result.labels) else f"mode {m + 1}"
-        ax.plot(rpm, F[:, m], color=colors[m], lw=1.6, marker="." if len(rpm) <= 12 else None,
-                label=f"{m + 1}: {lab}")
+    fig, ax = subplots(figsize=(12, 7))
+    colour = colormap(len(modes))
+    colors = {m: colour(j) for j, m in enumerate(modes)}
+    changes = {}
+    for c in getattr(result, "label_changes", None) or []:
+        changes.setdefault(c["mode"] - 1, []).append(c)
+    labels = [literal(f"{m + 1}: {result.labels[m] if m < len(result.labels) else f'mode {m + 1}'}"
+                      + "".join(f" -> {c['to']} ({c['rpm']:g} rpm)" for c in changes.get(m, [])), 90)
+              for m in modes]
+    over = coinciding([F[:, m] for m in modes])
+    for j, m in enumerate(modes):
+        ls, note = overlay_style(over, [f"mode {k + 1}" for k in modes], j)
+        ax.plot(rpm, F[:, m], color=colors[m], lw=1.6, ls=ls, marker="." if len(rpm) <= 12 else None,
+                label=labels[j] + note)
     # y-limit: 1.2 x the highest plotted frequency at the lowest speed with finite values
     first = next((i for i in range(len(rpm)) if np.any(np.isfinite(F[i, modes]))), None) if modes else None
     top = 1.2 * float(np.nanmax(F[first, modes])) if first is not None else 100.0
@@ -350,215 +485,27 @@ def plot_campbell(result, path, title: str = "", bands=()):
             xs = np.array([lo, hi], float)
             ax.plot(xs, k * xs / 60.0, color="darkorange", lw=3.0, alpha=0.8, zorder=4)
         if note:
-            ax.text(0.5 * (lo + hi), 0.98 * top, note, ha="center", va="top", fontsize=8, color="0.2",
+            ax.text(0.5 * (lo + hi), 0.98 * top, literal(note), ha="center", va="top", fontsize=8, color="0.2",
                     bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="darkorange", alpha=0.85))
     cx = [c for c in result.crossings if c["mode"] - 1 in colors]
     if cx:
         ax.scatter([c["rpm"] for c in cx], [c["frequency_hz"] for c in cx], s=36, zorder=5,
                    c=[colors[c["mode"] - 1] for c in cx], edgecolors="k", linewidths=0.8, label="crossing")
-    ax.set_xlabel(f"{result.drive_pulley} speed [rpm]")
+    ax.set_xlabel(f"{literal(result.drive_pulley, 60)} speed [rpm]")
     ax.set_ylabel("natural frequency [Hz]")
     ax.grid(alpha=0.3)
-    head = _wrapped(title, 100)
+    head = literal_wrapped(title, 100)
     note = "" if result.transport else " (no 'transport' effect: frequencies independent of speed)"
     ax.set_title((head + "\n" if head else "") + f"Campbell diagram{note}", fontsize=10)
     n_entries = len(modes) + 2
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0,
               ncol=1 if n_entries <= 28 else 2)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
 
 
-# --------------------------------------------------------------------------- transient simulations
+def __getattr__(name):  # plot_simulation, plot_spectra (and _channel_unit) live in beltjax.plot_transient
+    if name in ("plot_simulation", "plot_spectra", "_channel_unit"):
+        from beltjax import plot_transient
 
-# channel -> (panel label, default unit, factor to the plotted unit, plotted unit), in the preferred order
-_SIM_CHANNELS = {
-    "span_tensions_N": ("span tension", "N", 1.0, None),
-    "span_forces_N": ("span force", "N", 1.0, None),
-    "hub_force_magnitudes_N": ("hub force magnitude", "N", 1.0, None),
-    "pulley_speeds_rpm": ("pulley speed", "rpm", 1.0, None),
-    "arm_angle_deg": ("tensioner arm angle", "deg", 1.0, None),
-    "spring_moment_Nm": ("tensioner spring moment", "N m", 1.0, None),
-    "drive_torques_Nm": ("drive torque", "N m", 1.0, None),
-    "node_displacements_m": ("node displacement", "m", 1e3, "mm"),
-}
-_SPECTRUM_CHANNELS = ("hub_forces_N", "span_tensions_N", "node_displacements_m")
-_MAX_POINTS = 20000
-
-
-def _channel_unit(name, units, default):
-    """The unit of a channel (units[name] if given) and the factor and unit it is plotted in."""
-    unit = (units or {}).get(name) or default
-    scale, shown = 1.0, unit
-    if name in _SIM_CHANNELS:
-        _, dflt, factor, conv = _SIM_CHANNELS[name]
-        if conv is not None and unit == dflt:
-            scale, shown = factor, conv
-    return unit, scale, shown
-
-
-def _channel_lines(name, values, columns):
-    """[(label, series (nt,), colour index, line style)] of a channel (nt,), (nt, k) or (nt, k, 2)."""
-    from beltjax.signals import column_labels
-
-    arr = np.asarray(values, dtype=float)
-    labels = column_labels(name, arr.shape, columns)
-    flat = arr.reshape(arr.shape[0], -1)
-    if arr.ndim == 3:
-        return [(lab, flat[:, j], j // 2, "-" if j % 2 == 0 else "--") for j, lab in enumerate(labels)]
-    return [(lab, flat[:, j], j, "-") for j, lab in enumerate(labels)]
-
-
-def _colour(n_lines):
-    cmap = plt.get_cmap("tab20" if n_lines > 10 else "tab10")
-    return lambda j: cmap(j % cmap.N)
-
-
-def _legend(ax, n):
-    if n > 1:
-        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0,
-                  ncol=1 + (n - 1) // 16, handlelength=1.8)
-
-
-def plot_simulation(t, channels, columns, units, path, *, title=""):
-    """Save stacked time histories of a transient simulation (PNG), one panel per channel.
-
-    t: sample times (s), shape (nt,); channels: name -> array (nt,), (nt, k) or (nt, k, 2)
-    (x solid, y dashed); columns: name -> column labels (span, pulley or node names);
-    units: name -> unit string (defaults from the channel name).  Panels, in this order,
-    for the channels present: span_tensions_N, span_forces_N, hub_force_magnitudes_N,
-    pulley_speeds_rpm, arm_angle_deg, spring_moment_Nm, drive_torques_Nm and
-    node_displacements_m (drawn in mm).  At most about 20000 points per line (strided).
-    """
-    t = np.asarray(t, dtype=float)
-    names = [n for n in _SIM_CHANNELS if n in channels and channels[n] is not None]
-    stride = max(1, int(np.ceil(t.size / _MAX_POINTS)))
-    n = max(len(names), 1)
-    fig, axes = plt.subplots(n, 1, figsize=(11, 1.2 + 2.2 * n), sharex=True, squeeze=False)
-    axes = axes[:, 0]
-    if not names:
-        axes[0].text(0.5, 0.5, "no channels to plot", ha="center", va="center", transform=axes[0].transAxes,
-                     fontsize=12, color="crimson")
-    for ax, name in zip(axes, names):
-        label, default, _, _ = _SIM_CHANNELS[name]
-        _, scale, shown = _channel_unit(name, units, default)
-        lines = _channel_lines(name, channels[name], columns)
-        colour = _colour(max(c for _, _, c, _ in lines) + 1)
-        for lab, y, c, ls in lines:
-            ax.plot(t[::stride], scale * y[::stride], lw=1.0, ls=ls, color=colour(c), label=lab)
-        ax.set_ylabel(f"{label} ({shown})", fontsize=9)
-        ax.tick_params(labelsize=8)
-        ax.grid(alpha=0.3)
-        _legend(ax, len(lines))
-    axes[-1].set_xlabel("time (s)")
-    if t.size:
-        axes[-1].set_xlim(float(t[0]), float(t[-1]))
-    head = _wrapped(title, 110)
-    note = f" (every {stride}th sample drawn)" if stride > 1 else ""
-    fig.suptitle((head + "\n" if head else "") + f"time histories, {t.size} samples{note}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-def _envelope(f, a, max_points=_MAX_POINTS):
-    """(f, a) reduced to at most ~max_points by the maximum over blocks (keeps the peaks)."""
-    if f.size <= max_points:
-        return f, a
-    b = int(np.ceil(f.size / max_points))
-    m = f.size // b * b
-    fb, ab = f[:m].reshape(-1, b), a[:m].reshape(-1, b)
-    k = np.argmax(ab, axis=1)
-    rows = np.arange(fb.shape[0])
-    return fb[rows, k], ab[rows, k]
-
-
-def plot_spectra(t, channels, columns, units, path, *, title="", fmax=None, settle_fraction=0.0):
-    """Save amplitude spectra (log scale) of a transient simulation's forces and displacements (PNG).
-
-    Spectra (signals.spectrum: Hann window, trend and mean removed) of the part of the
-    record after settle_fraction of its duration, for the channels present among
-    hub_forces_N (nt, nb, 2) (one panel for the x and one for the y components, columns =
-    body names), span_tensions_N and node_displacements_m (in mm; x and y panels when 3-D).
-    The largest peaks of each panel (above 2 / duration) are marked with their frequency.
-    t: uniform sample times (s); units: name -> unit string; fmax (Hz): upper limit of the
-    plot, default min(Nyquist, 500 Hz).
-    """
-    from beltjax import signals
-
-    t = np.asarray(t, dtype=float)
-    keep = signals.settled(t, settle_fraction)
-    tk = t[keep]
-    panels = []  # (title, y label, [(label, series, colour, style)])
-    for name in _SPECTRUM_CHANNELS:
-        if name not in channels or channels[name] is None:
-            continue
-        default = {"hub_forces_N": "N", "span_tensions_N": "N", "node_displacements_m": "m"}[name]
-        _, scale, shown = _channel_unit(name, units, default)
-        arr = np.asarray(channels[name], dtype=float)
-        lines = [(lab, scale * y[keep], c, ls) for lab, y, c, ls in _channel_lines(name, arr, columns)]
-        what = {"hub_forces_N": "hub force", "span_tensions_N": "span tension",
-                "node_displacements_m": "node displacement"}[name]
-        if arr.ndim == 3:
-            for comp, style in (("x", "-"), ("y", "--")):
-                sel = [(lab, y, c, "-") for lab, y, c, ls in lines if ls == style]
-                panels.append((f"{what}, {comp} component", f"amplitude ({shown})", sel))
-        else:
-            panels.append((what, f"amplitude ({shown})", lines))
-    n = max(len(panels), 1)
-    fig, axes = plt.subplots(n, 1, figsize=(11, 1.2 + 2.5 * n), sharex=True, squeeze=False)
-    axes = axes[:, 0]
-    enough = tk.size >= signals.MIN_SAMPLES
-    nyquist = 0.5 / float(np.mean(np.diff(tk))) if tk.size > 1 else 1.0
-    top = min(nyquist, 500.0) if fmax is None else float(fmax)
-    duration = float(tk[-1] - tk[0]) if tk.size > 1 else 0.0
-    if not panels or not enough:
-        msg = "no channels to plot" if not panels else f"only {tk.size} samples after settling: no spectrum"
-        axes[0].text(0.5, 0.5, msg, ha="center", va="center", transform=axes[0].transAxes, fontsize=12,
-                     color="crimson")
-    for ax, (head, ylabel, lines) in zip(axes, panels if enough else []):
-        colour = _colour(max([c for _, _, c, _ in lines] + [0]) + 1)
-        peaks, drawn, a_max = [], 0, 0.0
-        for lab, y, c, _ in lines:
-            if not np.all(np.isfinite(y)):
-                continue
-            f, a = signals.spectrum(tk, y)
-            sel = (f > 0) & (f <= top)
-            fe, ae = _envelope(f[sel], a[sel])
-            ax.plot(fe, np.where(ae > 0, ae, np.nan), lw=0.9, color=colour(c), label=lab)
-            drawn += 1
-            a_max = max(a_max, float(np.max(a[sel], initial=0.0)))
-            peaks += signals.dominant_frequencies(tk, y, count=3, fmin=2.0 / duration, fmax=top)
-        ax.set_yscale("log")
-        if a_max > 0:
-            ax.set_ylim(a_max * 1e-6, a_max * 100.0)  # room above the peaks for their labels
-        chosen = []
-        bin_hz = 1.0 / duration
-        for fr, am in sorted(peaks, key=lambda p: -p[1]):
-            if am >= 0.05 * max(a_max, 1e-300) and all(abs(fr - g) > 3 * bin_hz for g, _ in chosen):
-                chosen.append((fr, am))
-            if len(chosen) == 3:
-                break
-        level, prev = 0, None
-        for fr, am in sorted(chosen):
-            level = (level + 1) % 3 if prev is not None and fr - prev < 0.08 * top else 0  # stagger close labels
-            prev = fr
-            ax.plot(fr, am, marker="v", color="k", ms=5, zorder=5)
-            ax.annotate(f"{fr:.1f} Hz", (fr, am), xytext=(0, 6 + 11 * level), textcoords="offset points",
-                        ha="center", fontsize=8, zorder=6,
-                        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
-        ax.set_title(head, fontsize=9, loc="left")
-        ax.set_ylabel(ylabel, fontsize=9)
-        ax.tick_params(labelsize=8)
-        ax.grid(alpha=0.3)
-        _legend(ax, drawn)
-    axes[-1].set_xlabel("frequency (Hz)")
-    axes[-1].set_xlim(0.0, top)
-    head = _wrapped(title, 110)
-    fig.suptitle((head + "\n" if head else "")
-                 + f"amplitude spectra of the last {duration:.3g} s (Hann window, trend removed; "
-                 f"resolution {1.0 / max(duration, 1e-300):.3g} Hz)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        return getattr(plot_transient, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

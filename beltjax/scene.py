@@ -56,9 +56,16 @@ message that starts with the key path, e.g. ``pulley[1].radius: must be > 0,
 got -0.01`` (``pulley[i]`` counts the ``[[pulley]]`` tables from 0 in file
 order); file-level problems start with the file name.
 
+Every number must lie in its accepted range (below, from :mod:`beltjax.schema`: wide
+enough for every real belt drive, inside what float64 carries), e.g. ``belt.EI: must lie
+in [0, 100000] N m^2 (...), got 1e+20``; the whole drive then passes the layout checks and
+the derived float64 limits of :mod:`beltjax.validate` (the same checks as a parameter set
+with :mod:`beltjax.parameters`, a sweep case and the Python API).
+
 The parsed :class:`Scene` is an equinox Module: every number is a float64 jax
 array leaf (so ``jax.grad`` / ``eqx.filter_grad`` reach centres, radii,
 stiffnesses...), names and switches are static fields.
+
 """
 
 from __future__ import annotations
@@ -66,7 +73,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import tomllib
 from typing import Any
 
 import equinox as eqx
@@ -74,10 +80,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import geometry, tomltable
+from beltjax import geometry, schema, textfile, tomltable
 from beltjax.ancf import BENDING_MODELS
 from beltjax.errors import BeltjaxError
 from beltjax.tomltable import describe
+
+if __doc__:  # (None under python -OO)
+    __doc__ += schema.scene_doc()  # the accepted ranges: one source, beltjax.schema
 
 #: effects a scene may ask for in ``model.effects`` (only listed ones are simulated)
 EFFECTS = (
@@ -334,6 +343,10 @@ def _arr(x):
     return None if x is None else jnp.asarray(x, dtype=jnp.float64)
 
 
+_num = schema.read_number
+_vec = schema.read_vector
+
+
 # --------------------------------------------------------------------------- sections
 
 _TOP_KEYS = (
@@ -388,14 +401,14 @@ _MODEL_KEYS = ("fidelity", "elements_per_span", "effects", "bending")
 
 def _parse_belt(data, source) -> Belt:
     t = _table(data, "belt", source, _BELT_KEYS)
-    EA = t.number("EA", positive=True)
-    EI = t.number("EI", nonnegative=True)
-    rhoA = t.number("rhoA", positive=True)
+    EA = _num(t, "EA", "belt")
+    EI = _num(t, "EI", "belt")
+    rhoA = _num(t, "rhoA", "belt")
     if t.has("static_tension") == t.has("length"):
         _fail("belt", "give exactly one of static_tension and length", source)
-    T = t.number("static_tension", required=False, positive=True)
-    L = t.number("length", required=False, positive=True)
-    CA = t.number("CA", required=False, default=0.0, nonnegative=True)
+    T = _num(t, "static_tension", "belt", required=False)
+    L = _num(t, "length", "belt", required=False)
+    CA = _num(t, "CA", "belt", required=False, default=0.0)
     return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA))
 
 
@@ -406,24 +419,24 @@ def _parse_pulley(data, i, source) -> Pulley:
         t.fail("name", "must not be empty")
     if name == TENSIONER:
         t.fail("name", f"{TENSIONER!r} is reserved for the [tensioner] idler")
-    center = t.vector2("center")
-    radius = t.number("radius", positive=True)
-    mass = t.number("mass", nonnegative=True)
-    inertia = t.number("inertia", positive=True)
+    center = _vec(t, "center", "pulley")
+    radius = _num(t, "radius", "pulley")
+    mass = _num(t, "mass", "pulley")
+    inertia = _num(t, "inertia", "pulley")
     driven = t.boolean("driven")
     if not driven:
         for k in _DRIVEN_ONLY:
             if t.has(k):
                 t.fail(k, "only a driven pulley (driven = true) takes a prescribed motion")
-    speed = t.number("speed_rpm", required=False, default=0.0)
-    accel = t.number("acceleration_rpm_per_s", required=False, default=0.0)
-    amp = t.number("fluctuation_amplitude_deg", required=False, default=0.0, nonnegative=True)
-    freq = t.number("fluctuation_frequency_hz", required=False, default=0.0, nonnegative=True)
-    cm = t.vector2("cm_offset", required=False, default=[0.0, 0.0])
+    speed = _num(t, "speed_rpm", "pulley", required=False, default=0.0)
+    accel = _num(t, "acceleration_rpm_per_s", "pulley", required=False, default=0.0)
+    amp = _num(t, "fluctuation_amplitude_deg", "pulley", required=False, default=0.0)
+    freq = _num(t, "fluctuation_frequency_hz", "pulley", required=False, default=0.0)
+    cm = _vec(t, "cm_offset", "pulley", required=False, default=[0.0, 0.0])
     if math.hypot(*cm) >= radius:
         t.fail("cm_offset", f"offset {math.hypot(*cm)!r} m must be smaller than the radius {radius!r} m")
-    bd = t.number("bearing_damping", required=False, default=0.0, nonnegative=True)
-    target = t.number("target_speed_rpm", required=False)
+    bd = _num(t, "bearing_damping", "pulley", required=False, default=0.0)
+    target = _num(t, "target_speed_rpm", "pulley", required=False)
     if target is not None:
         if accel == 0.0:
             t.fail("target_speed_rpm", "needs acceleration_rpm_per_s (a run-up) to reach it")
@@ -453,21 +466,21 @@ def _parse_pulley(data, i, source) -> Pulley:
 
 def _parse_tensioner(data, source) -> Tensioner:
     t = _table(data, "tensioner", source, _TENSIONER_KEYS)
-    arm_length = t.number("arm_length", positive=True)
+    arm_length = _num(t, "arm_length", "tensioner")
     vals = dict(
-        pivot=_arr(t.vector2("pivot")),
+        pivot=_arr(_vec(t, "pivot", "tensioner")),
         arm_length=_arr(arm_length),
-        pulley_radius=_arr(t.number("pulley_radius", positive=True)),
-        arm_mass=_arr(t.number("arm_mass", nonnegative=True)),
-        arm_inertia=_arr(t.number("arm_inertia", nonnegative=True)),
-        pulley_mass=_arr(t.number("pulley_mass", nonnegative=True)),
-        pulley_inertia=_arr(t.number("pulley_inertia", positive=True)),
-        spring_stiffness=_arr(t.number("spring_stiffness", positive=True)),
-        spring_preload_deg=_arr(t.number("spring_preload_deg")),
-        arm_angle_deg=_arr(t.number("arm_angle_deg", required=False)),
-        damping=_arr(t.number("damping", required=False, default=0.0, nonnegative=True)),
+        pulley_radius=_arr(_num(t, "pulley_radius", "tensioner")),
+        arm_mass=_arr(_num(t, "arm_mass", "tensioner")),
+        arm_inertia=_arr(_num(t, "arm_inertia", "tensioner")),
+        pulley_mass=_arr(_num(t, "pulley_mass", "tensioner")),
+        pulley_inertia=_arr(_num(t, "pulley_inertia", "tensioner")),
+        spring_stiffness=_arr(_num(t, "spring_stiffness", "tensioner")),
+        spring_preload_deg=_arr(_num(t, "spring_preload_deg", "tensioner")),
+        arm_angle_deg=_arr(_num(t, "arm_angle_deg", "tensioner", required=False)),
+        damping=_arr(_num(t, "damping", "tensioner", required=False, default=0.0)),
     )
-    cm = t.number("arm_cm_distance", required=False, default=0.0, nonnegative=True)
+    cm = _num(t, "arm_cm_distance", "tensioner", required=False, default=0.0)
     if cm > arm_length:
         t.fail("arm_cm_distance", f"must not exceed arm_length = {arm_length!r}, got {cm!r}")
     vals["arm_cm_distance"] = _arr(cm)
@@ -510,9 +523,9 @@ def _parse_model(data, source) -> Model:
     return Model(fidelity=fidelity, elements_per_span=n, effects=tuple(effects), bending=bending)
 
 
-def _window(t):
-    t0 = t.number("t_start_s", required=False, default=0.0, nonnegative=True)
-    t1 = t.number("t_end_s", required=False)
+def _window(t, group):
+    t0 = _num(t, "t_start_s", group, required=False, default=0.0)
+    t1 = _num(t, "t_end_s", group, required=False)
     if t1 is not None and t1 <= t0:
         t.fail("t_end_s", f"must be later than t_start_s = {t0!r}, got {t1!r}")
     return _arr(t0), _arr(t1)
@@ -533,14 +546,14 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
                 f"{name!r} is not a free pulley of the route (free: {', '.join(free_names) or 'none'}; "
                 "a driven pulley's motion is prescribed)",
             )
-        t0, t1 = _window(t)
+        t0, t1 = _window(t, "torque")
         out.append(
             Torque(
                 pulley=name,
-                mean_Nm=_arr(t.number("mean_Nm", required=False, default=0.0)),
-                amplitude_Nm=_arr(t.number("amplitude_Nm", required=False, default=0.0)),
-                frequency_hz=_arr(t.number("frequency_hz", required=False, default=0.0, nonnegative=True)),
-                phase_deg=_arr(t.number("phase_deg", required=False, default=0.0)),
+                mean_Nm=_arr(_num(t, "mean_Nm", "torque", required=False, default=0.0)),
+                amplitude_Nm=_arr(_num(t, "amplitude_Nm", "torque", required=False, default=0.0)),
+                frequency_hz=_arr(_num(t, "frequency_hz", "torque", required=False, default=0.0)),
+                phase_deg=_arr(_num(t, "phase_deg", "torque", required=False, default=0.0)),
                 t_start_s=t0,
                 t_end_s=t1,
             )
@@ -563,14 +576,14 @@ def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLo
         node = t.integer("node")
         if not 1 <= node <= n_elements - 1:
             t.fail("node", f"must be an interior node, 1 to {n_elements - 1} (elements_per_span - 1), got {node!r}")
-        t0, t1 = _window(t)
+        t0, t1 = _window(t, "span_load")
         out.append(
             SpanLoad(
                 span=name,
                 node=node,
-                amplitude_N=_arr(t.number("amplitude_N")),
-                frequency_hz=_arr(t.number("frequency_hz", nonnegative=True)),
-                phase_deg=_arr(t.number("phase_deg", required=False, default=0.0)),
+                amplitude_N=_arr(_num(t, "amplitude_N", "span_load")),
+                frequency_hz=_arr(_num(t, "frequency_hz", "span_load")),
+                phase_deg=_arr(_num(t, "phase_deg", "span_load", required=False, default=0.0)),
                 t_start_s=t0,
                 t_end_s=t1,
             )
@@ -593,8 +606,11 @@ def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
             )
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             _fail(f"initial.rotation_deg.{name}", f"expected a finite number (deg), got {describe(v)}", source)
+        msg = schema.problem(schema.FIELDS["initial.rotation_deg"], v)
+        if msg:
+            _fail(f"initial.rotation_deg.{name}", msg, source)
         pairs.append((name, float(v)))
-    arm = t.number("arm_angle_deg", required=False)
+    arm = _num(t, "arm_angle_deg", "initial", required=False)
     if arm is not None and not has_tensioner:
         t.fail("arm_angle_deg", "there is no [tensioner]")
     return Initial(rotation_deg=tuple(pairs), arm_angle_deg=arm)
@@ -603,13 +619,11 @@ def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
 def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
     t = _table(data, "simulation", source, _SIMULATION_KEYS)
     solver = t.string("solver", required=False, default=None, choices=SOLVERS)
-    dt = t.number("dt_s", required=False, positive=True)
-    rho = t.number("rho_inf", required=False, default=0.9)
-    if not 0.0 <= rho <= 1.0:
-        t.fail("rho_inf", f"must lie in [0, 1], got {rho!r}")
-    rtol = t.number("rtol", required=False, default=1e-6, positive=True)
-    atol = t.number("atol", required=False, default=1e-9, positive=True)
-    out_dt = t.number("output_dt_s", required=False, positive=True)
+    dt = _num(t, "dt_s", "simulation", required=False)
+    rho = _num(t, "rho_inf", "simulation", required=False, default=0.9)
+    rtol = _num(t, "rtol", "simulation", required=False, default=1e-6)
+    atol = _num(t, "atol", "simulation", required=False, default=1e-9)
+    out_dt = _num(t, "output_dt_s", "simulation", required=False)
     nodes = t.strings("nodes", required=False)
     if nodes is not None:
         if fidelity != "ancf" and nodes:
@@ -758,36 +772,28 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
                 "between fixed pulleys: the belt would be slack",
                 source,
             )
+    from beltjax import validate  # (imports this module)
+
+    problem = validate.scene_problem(scene)
+    if problem is not None:
+        _fail(*problem, source)
     return scene
 
 
 def load_scene(path: str | os.PathLike) -> Scene:
     """Read and validate a TOML scene file; returns a :class:`Scene`.
 
-    Raises :class:`SceneError` (one line) for a missing or unreadable file,
-    malformed TOML (with the line and column) or an invalid scene.
+    Raises :class:`SceneError` (one line) for a missing file, one that is not a regular file
+    (a pipe, a device, a directory) or larger than the limit, text that is not UTF-8 (a
+    byte-order mark is accepted), malformed TOML (with the line and column), values no key can
+    carry (see :mod:`beltjax.textfile`) or an invalid scene.
     """
     p = os.fspath(path)
-    try:
-        with open(p, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        _fail(p, "scene file not found", p)
-    except IsADirectoryError:
-        _fail(p, "is a directory, not a scene file", p)
-    except tomllib.TOMLDecodeError as e:
-        _fail(p, f"malformed TOML: {e}", p)
-    except UnicodeDecodeError as e:
-        _fail(p, f"not a UTF-8 text file ({e.reason})", p)
-    except OSError as e:
-        _fail(p, f"cannot read: {e.strerror or e}", p)
+    data = textfile.load_toml(p, "scene", functools.partial(_fail, source=p))
     return parse_scene(data, source=p)
 
 
 def loads_scene(text: str, source: str = "<string>") -> Scene:
     """Parse and validate a scene given as TOML text (see :func:`load_scene`)."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        _fail(source, f"malformed TOML: {e}", source)
+    data = textfile.loads_toml(text, source, functools.partial(_fail, source=source))
     return parse_scene(data, source=source)

@@ -27,10 +27,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import ancf, modal
-from beltjax.ancf import Section
+from beltjax import ancf, modal, schema
+from beltjax.ancf import BENDING_MODELS, Section
+from beltjax.errors import BeltjaxError
 
 BOUNDARY_CONDITIONS = ("pinned", "clamped", "free")
+#: most elements of a span (as a scene's model.elements_per_span)
+MAX_ELEMENTS = 400
 
 
 # --------------------------------------------------------------------------- assembly
@@ -209,6 +212,54 @@ def _label_modes(shapes, M_free, free):
     return shares, labels
 
 
+def _number(key: str, x, field: str) -> float:
+    try:
+        if isinstance(x, (bool, str, bytes)) or np.ndim(x) != 0:
+            raise TypeError
+        v = float(x)
+    except (TypeError, ValueError):
+        raise BeltjaxError(f"expected a number, got {x!r}", key) from None
+    msg = schema.problem(schema.FIELDS[field], v)
+    if msg:
+        raise BeltjaxError(msg, key)
+    return v
+
+
+def check_arguments(length, tension, EA, EI, rhoA, speed=0.0, n_elements=20, bc="pinned", bending="linear", *,
+                    keys=None):
+    """The arguments of :func:`analyse_span` as floats, an int and a (left, right) pair, or a
+    :class:`BeltjaxError` naming the argument: numbers in their :mod:`beltjax.schema` ranges
+    (length as ``span.length``, tension ``span.tension``, speed ``span.speed``, EA, EI and rhoA
+    as the belt's), and a span that float64 can carry (:func:`beltjax.schema.string_spread`).
+    keys: {argument: name in messages} (the command line's ``--length``, ...)."""
+    key = {k: k for k in ("length", "tension", "EA", "EI", "rhoA", "speed")} | dict(keys or {})
+    length = _number(key["length"], length, "span.length")
+    tension = _number(key["tension"], tension, "span.tension")
+    EA, EI, rhoA = (_number(key[k], x, f"belt.{k}") for k, x in (("EA", EA), ("EI", EI), ("rhoA", rhoA)))
+    speed = _number(key["speed"], speed, "span.speed")
+    if (isinstance(n_elements, bool) or not isinstance(n_elements, (int, np.integer))
+            or not 1 <= n_elements <= MAX_ELEMENTS):
+        raise BeltjaxError(f"must be an integer from 1 to {MAX_ELEMENTS}, got {n_elements!r}", "n_elements")
+    pair = (bc, bc) if isinstance(bc, str) else tuple(bc) if isinstance(bc, (tuple, list)) else None
+    if pair is None or len(pair) != 2 or any(b not in BOUNDARY_CONDITIONS for b in pair):
+        raise BeltjaxError(f"expected one of {', '.join(BOUNDARY_CONDITIONS)} or a (left, right) pair of them, "
+                           f"got {bc!r}", "bc")
+    if pair == ("free", "free"):
+        raise BeltjaxError("a span free at both ends is not held: pin or clamp one end", "bc")
+    if bending not in BENDING_MODELS:
+        raise BeltjaxError(f"expected one of {', '.join(BENDING_MODELS)}, got {bending!r}", "bending")
+    if EI == 0.0 and tension == 0.0:
+        raise BeltjaxError("a string (EI = 0) without tension has no transverse stiffness: give tension > 0",
+                           key["tension"])
+    spread = float(schema.string_spread(EA, EI, tension, length, n_elements))
+    if not spread <= schema.MAX_STRING_SPREAD:
+        raise BeltjaxError(
+            f"the axial stiffness ({EA:g} N over {n_elements} elements) is {spread:.3g} times the string stiffness "
+            f"(tension {tension:g} N, EI {EI:g} N m^2; at most {schema.MAX_STRING_SPREAD:g}), beyond what float64 "
+            "eigen-solves resolve (check EA's unit, or use fewer elements)", key["EA"])
+    return length, tension, EA, EI, rhoA, speed, int(n_elements), pair
+
+
 def analyse_span(
     length: float,
     tension: float,
@@ -228,10 +279,12 @@ def analyse_span(
     through the span (m/s); n_elements: ANCF elements; bc: "pinned", "clamped"
     or a (left, right) pair including "free"; bending: "linear" or "exact".
     With speed != 0 the gyroscopic eigenproblem is solved; past the critical
-    speed the result has ``stable=False`` and the unstable eigenvalues.
+    speed the result has ``stable=False`` and the unstable eigenvalues.  Bad arguments (NaN,
+    out of range, see :func:`check_arguments`) raise :class:`beltjax.errors.BeltjaxError`.
     """
-    bc = (bc, bc) if isinstance(bc, str) else tuple(bc)
-    section = Section(float(EA), float(EI), float(rhoA))
+    length, tension, EA, EI, rhoA, speed, n_elements, bc = check_arguments(
+        length, tension, EA, EI, rhoA, speed, n_elements, bc, bending)
+    section = Section(EA, EI, rhoA)
     mats = span_matrices(section, float(length), float(tension), float(speed), n_elements=n_elements, bc=bc, bending=bending)
     free = free_dofs(n_elements, bc)
     n_coords = 4 * (n_elements + 1)

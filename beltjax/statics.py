@@ -41,7 +41,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, span
+from beltjax import critical, drive, span
 from beltjax.errors import BeltjaxError
 from beltjax.drive import Installation
 from beltjax.scene import TENSIONER, Scene
@@ -293,7 +293,10 @@ class StaticResult:
     hub_forces_N: force of the belt on each hub {name: [Fx, Fy]} (the tensioner
     idler as "tensioner"); tensioner_angle_deg, spring_moment_Nm,
     tensioner_pivot_force_N (None without a tensioner); wrap_angles_deg;
-    speed_m_s; converged, iterations.
+    speed_m_s; converged, iterations; span_forces_N: each span's force on the pulleys,
+    tension less rhoA c^2 lam (:mod:`beltjax.critical`); supercritical: None, or the
+    one-line reason why the state is past the critical speed (only with
+    ``analyse_statics(..., allow_supercritical=True)``).
     """
 
     span_names: list[str]
@@ -312,12 +315,15 @@ class StaticResult:
     qi: np.ndarray = field(repr=False)
     q: np.ndarray = field(repr=False)
     inst: Installation = field(repr=False)
+    span_forces_N: np.ndarray | None = None
+    supercritical: str | None = None
 
     def to_json(self) -> dict:
         """statics.json contents."""
         d = {
             "span_names": self.span_names,
             "span_tensions_N": [float(x) for x in self.span_tensions_N],
+            "span_forces_N": None if self.span_forces_N is None else [float(x) for x in self.span_forces_N],
             "span_lengths_m": [float(x) for x in self.span_lengths_m],
             "belt_length_m": self.belt_length_m,
             "installation_tension_N": self.installation_tension_N,
@@ -357,26 +363,54 @@ def static_outputs(scene, qi, inst, speed):
     )
 
 
-def analyse_statics(scene: Scene, speed: float | None = None) -> StaticResult:
-    """Static state of the drive at belt speed ``speed`` (m/s; default from speed_rpm).
-
-    Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
-    Newton iteration fails even with speed stepping, or a span would go slack.
-    """
-    scene = drive.canonical(scene)
-    inst = install_compiled(scene)
-    check_installation(scene, inst)
-    v = float(drive.belt_speed(scene)) if speed is None else float(speed)
+def solve_at(scene: Scene, v: float):
+    """(:func:`static_outputs` at belt speed v (m/s), converged (bool), Newton iterations,
+    residual norm) of the (canonical) scene; speed stepping (8 steps) when Newton from the
+    installed state fails.  Compiled once per scene structure (v is traced)."""
     out, (conv, it, rn) = _statics_core(scene, v)
     if not float(conv) > 0.5:
         out, (conv, it, rn) = _statics_core(scene, v, steps=8)
-    if not float(conv) > 0.5:
-        raise StaticsError(f"no static equilibrium found (Newton stalled at residual {float(rn):.3g})", "statics")
+    return out, float(conv) > 0.5, int(it), float(rn)
+
+
+def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercritical: bool = False) -> StaticResult:
+    """Static state of the drive at belt speed ``speed`` (m/s; default from speed_rpm).
+
+    Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
+    Newton iteration fails even with speed stepping, a span would go slack, or the
+    speed is past the drive's critical speed (a span's force on the pulleys, tension
+    less rhoA c^2 lam, <= 0: :mod:`beltjax.critical`; the line names the span, the speed
+    and the critical speed).  With ``allow_supercritical`` such a state is returned
+    instead, with the reason in ``supercritical`` (for the modal analysis, which reports
+    it as unstable, and the transients, which record it).  A scene that fails the scene
+    file's checks (:func:`beltjax.validate.check_scene`) or a speed that is NaN, infinite,
+    negative or beyond 1e4 m/s is a one-line :class:`beltjax.errors.BeltjaxError`.
+    """
+    from beltjax import validate
+
+    validate.check_scene(scene)
+    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
+    scene = drive.canonical(scene)
+    inst = install_compiled(scene)
+    check_installation(scene, inst)
+    out, conv, it, rn = solve_at(scene, v)
+    if not conv:
+        vc = critical.critical_speed(scene, v) if v != 0.0 else None
+        if vc is not None:
+            raise StaticsError(critical.message(scene, abs(v), vc, None, None))
+        raise StaticsError(f"no static equilibrium found (Newton stalled at residual {rn:.3g})", "statics")
     names = drive.span_names(scene)
     tensions = np.asarray(out["tensions"])
     for nm, T in zip(names, tensions):
         if not T > 0:
             raise StaticsError(f"span {nm} would go slack (tension {T:.4g} N)", "statics")
+    forces = critical.output_forces(scene, out, v)
+    reason = None
+    if v != 0.0 and not np.all(forces > 0):
+        vc = critical.critical_speed(scene, v)
+        reason = critical.message(scene, abs(v), vc, forces, tensions)
+        if not allow_supercritical:
+            raise StaticsError(reason)
     order = scene.route.order
     hubs = np.asarray(out["hubs"])
     inst = out["inst"]
@@ -397,6 +431,8 @@ def analyse_statics(scene: Scene, speed: float | None = None) -> StaticResult:
         qi=np.asarray(out["qi"]),
         q=np.asarray(out["q"]),
         inst=inst,
+        span_forces_N=forces,
+        supercritical=reason,
     )
     if scene.tensioner is not None:
         th = float(out["theta"])

@@ -79,19 +79,39 @@ statics
     spring moment (tensioner drives), Newton convergence.  At the drive pulley's
     ``speed_rpm`` (steady motion), as ``beltjax statics``.
 modal
-    the lowest ``modes`` natural frequencies (Hz, sorted per case, not tracked
-    across cases: a crossing of two modes swaps columns) and a stability flag.
-    Labels are those of the nominal scene (labelling every case is not batched).
+    natural frequencies (Hz) of the nominal scene's lowest ``modes`` modes, followed
+    into every case by their shapes, and a stability flag: column ``f<k>_hz`` is the
+    nominal's k-th mode (its label in ``sweep.json``, ``nominal_modes``) in every row,
+    wherever it sits in the case's own order, so a column keeps its mode where two
+    modes cross (a transverse mode rising through a rotational one as the tension
+    grows).  Each case's modes come from the compiled eigen-solve with their
+    mass-weighted shapes (a few more modes than kept, so that a mode that moved up is
+    still found) and are matched to the nominal's by MAC and an optimal assignment
+    (:mod:`beltjax.mode_tracking`; a repeated pair as a subspace); ``mode_match`` is a
+    case's lowest MAC (near 1: every column holds the nominal's mode; low: a mode has
+    changed shape, e.g. two modes mixed near a veering; a column whose mode is not found
+    is NaN and counts 0).  Tracking to the nominal rather than along a grid axis works for
+    random (tolerance) studies too and needs no order of the cases.  Without modes of
+    the nominal (its statics fail, or it is unstable) the columns are the lowest
+    ``modes`` sorted per case, and ``sweep.json`` says so.
 campbell
-    frequencies of the lowest ``modes`` modes at each ``rpm`` speed per case (as
-    ``beltjax campbell``).
+    the same modes' frequencies at each ``rpm`` speed per case: matched to the nominal's
+    at the lowest speed, then followed along the case's speeds by their shapes (as
+    ``beltjax campbell``); ``campbell_mode_match`` is a case's lowest MAC.
 
 A case without an admissible state is never silently wrong: its outputs are NaN
-and its ``status`` names the cause (:data:`STATUS`): a value outside the
-parameter's range, a belt that cannot be fitted (slack, over-stretched, no
-tensioner balance), statics not converged (retried with speed stepping), a span
-gone slack, non-finite outputs; ``unstable`` (past a critical speed) keeps the
-statics and has NaN frequencies.  The run summary counts them by cause.
+and its ``status`` names the cause (:data:`STATUS`): before any computation, the
+scene file's checks (:func:`beltjax.validate.case_status`, vectorised over the
+cases) give ``invalid_value`` (a value outside the parameter's range of
+:mod:`beltjax.schema`), ``overlap`` (pulleys overlap, or no tangent between
+neighbours), ``no_belt_path`` (a degenerate wrap, a span through a pulley, spans
+crossing) and ``ill_conditioned`` (a derived float64 limit); then a belt that cannot
+be fitted (slack, over-stretched, no tensioner balance), statics not converged
+(retried with speed stepping), a span gone slack, non-finite outputs, ``supercritical``
+(the drive speed past the critical belt speed: a span's force on the pulleys <= 0,
+:mod:`beltjax.critical`); ``unstable`` (modes that grow) keeps the statics and has NaN
+frequencies.  The run summary counts them by cause.  A sweep accepts exactly what a scene
+file accepts.
 
 Command line: ``beltjax sweep SCENE SWEEP.toml [--backend local|dask] --out DIR``
 writes ``sweep.csv`` (one row per case: case, parameters, outputs, status),
@@ -110,7 +130,6 @@ import os
 import sys
 import threading
 import time
-import tomllib
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -120,7 +139,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, parameters, statics, tomltable
+from beltjax import (critical, drive, drive_modal, mode_tracking, parameters, schema, statics, sweep_modes, textfile,
+                     tomltable, validate)
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.tomltable import describe
@@ -139,25 +159,26 @@ SPACINGS = ("linear", "log")
 
 #: case status codes (index = the integer code) and their meaning
 STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched", "no_arm_balance",
-          "not_converged", "span_slack", "non_finite")
+          "not_converged", "span_slack", "non_finite", "supercritical", "overlap", "no_belt_path",
+          "ill_conditioned")
 REASONS = {
     "ok": "solved",
-    "unstable": "past a critical speed: no natural frequencies (statics kept)",
-    "invalid_value": "a parameter value outside its range (e.g. a non-positive stiffness, radius or mass)",
+    "unstable": "the linearised drive has modes that grow: no natural frequencies (statics kept)",
+    "invalid_value": "a parameter value outside its accepted range (beltjax.schema; e.g. a negative stiffness, "
+                     "EI = 1e20, a centre-of-mass offset outside its pulley)",
+    "overlap": "two pulleys overlap, or the belt has no tangent from one pulley to the next",
+    "no_belt_path": "a degenerate wrap angle, a span through a pulley, or two spans crossing",
+    "ill_conditioned": "beyond what float64 carries (a pinched span beside long ones, EA swamping the string "
+                       "stiffness, EI swamping EA, a drive far from the origin)",
     "belt_slack": "belt too long to fit: it would hang slack",
     "belt_overstretched": f"belt too short to fit: more than {100 * statics.MAX_INSTALL_STRAIN:g} % stretch",
     "no_arm_balance": "no tensioner arm angle balances the spring against the belt",
     "not_converged": "no static equilibrium found (Newton, also with speed stepping)",
     "span_slack": "a span would go slack (tension <= 0)",
     "non_finite": "non-finite outputs",
+    "supercritical": "past the critical belt speed: a span's force on the pulleys (tension less rhoA c^2 lam) <= 0",
 }
 _CODE = {s: i for i, s in enumerate(STATUS)}
-
-# parameter keys (last path component) that must be > 0, and >= 0
-_POSITIVE = {"EA", "EI", "rhoA", "static_tension", "length", "radius", "mass", "inertia", "arm_length",
-             "pulley_radius", "arm_mass", "arm_inertia", "pulley_mass", "pulley_inertia", "spring_stiffness"}
-_NONNEGATIVE = {"CA", "bearing_damping", "damping", "arm_cm_distance", "fluctuation_amplitude_deg",
-                "fluctuation_frequency_hz"}
 
 _TOP_KEYS = ("description", "outputs", "modes", "rpm", "chunk", "samples", "seed", "dask_scheduler", "grid", "random")
 _GRID_KEYS = ("parameter", "values", "start", "stop", "num", "spacing")
@@ -253,6 +274,9 @@ def _rpm_range(key: str, v) -> np.ndarray:
         raise SweepError(f"{key}[0]", f"start A must be >= 0, got {v[0]!r}")
     if b < a:
         raise SweepError(f"{key}[1]", f"end B must be >= start A, got {v[1]!r}")
+    msg = schema.problem(schema.FIELDS["drive.rpm"], b)
+    if msg:
+        raise SweepError(f"{key}[1]", msg)
     n = math.ceil((b + step / 2 - a) / step)
     if n > MAX_SPEEDS:
         raise SweepError(key, f"gives {n} speeds, at most {MAX_SPEEDS} allowed")
@@ -414,21 +438,10 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
 
 
 def load_spec(path: str | os.PathLike) -> Spec:
-    """Read and validate a sweep file (TOML); raises :class:`SweepError` (one line)."""
+    """Read and validate a sweep file (TOML, read by :mod:`beltjax.textfile`: a regular file of
+    bounded size); raises :class:`SweepError` (one line)."""
     p = os.fspath(path)
-    try:
-        with open(p, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise SweepError(p, "sweep file not found") from None
-    except IsADirectoryError:
-        raise SweepError(p, "is a directory, not a sweep file") from None
-    except tomllib.TOMLDecodeError as e:
-        raise SweepError(p, f"malformed TOML: {e}") from None
-    except UnicodeDecodeError as e:
-        raise SweepError(p, f"not a UTF-8 text file ({e.reason})") from None
-    except OSError as e:
-        raise SweepError(p, f"cannot read: {e.strerror or e}") from None
+    data = textfile.load_toml(p, "sweep", textfile.keyed(_raise))
     return parse_spec(data, source=p)
 
 
@@ -447,12 +460,11 @@ def nominal_value(scene: Scene, path: str) -> float:
 
 
 def _check_range(key: str, path: str, values) -> None:
-    name = path.rsplit(".", 1)[-1]
-    v = np.asarray(values, float)
-    if name in _POSITIVE and np.any(v <= 0):
-        raise SweepError(key, f"{path} must be > 0, got {float(v[v <= 0][0])!r}")
-    if name in _NONNEGATIVE and np.any(v < 0):
-        raise SweepError(key, f"{path} must be >= 0, got {float(v[v < 0][0])!r}")
+    """A value that no case could use (outside the range of :mod:`beltjax.schema`): one line."""
+    try:
+        parameters.check_value(path, values)
+    except parameters.ParameterError as exc:
+        raise SweepError(key, f"{path} {str(exc)[len(path) + 2:]}") from None
 
 
 def check_spec(scene: Scene, spec: Spec) -> None:
@@ -460,7 +472,6 @@ def check_spec(scene: Scene, spec: Spec) -> None:
     for a in [*spec.grid, *spec.random]:
         try:
             parameters.check(scene, a.parameter)
-            parameters.set_value(scene, a.parameter, 1.0)
         except parameters.ParameterError as exc:
             raise SweepError(f"{a.key}.parameter", str(exc)) from None
     for a in spec.grid:
@@ -506,18 +517,11 @@ def cases(scene: Scene, spec: Spec) -> dict[str, np.ndarray]:
     return out
 
 
-def _invalid(values: Mapping[str, np.ndarray], n: int) -> np.ndarray:
-    """(n,) bool: cases with a value outside its parameter's range."""
-    bad = np.zeros(n, bool)
-    for path, v in values.items():
-        name = path.rsplit(".", 1)[-1]
-        v = np.asarray(v, float)
-        bad |= ~np.isfinite(v)
-        if name in _POSITIVE:
-            bad |= v <= 0
-        elif name in _NONNEGATIVE:
-            bad |= v < 0
-    return bad
+def _precheck(scene: Scene, values: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+    """(n,) status codes of the scene file's checks on every case (:func:`beltjax.validate.case_status`,
+    vectorised over the cases; 0 where they pass)."""
+    status, _ = validate.case_status(scene, values, n)
+    return np.asarray([_CODE[s] for s in status], dtype=int) if n else np.zeros(0, int)
 
 
 # --------------------------------------------------------------------------- the batched function
@@ -531,10 +535,12 @@ class _Options:
     modes: int
     gyro: bool
     steps: int = 1
+    track: int = 0
 
 
 def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] = ("statics", "modal"),
-                 modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1) -> dict[str, jax.Array]:
+                 modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1,
+                 track: int = 0) -> dict[str, jax.Array]:
     """Outputs of one case: ``scene`` with ``values`` {path: scalar} set (pure JAX: jit, vmap, grad).
 
     outputs, modes, gyroscopic (solve the gyroscopic problem of the moving belt) and steps
@@ -543,7 +549,10 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     span_tensions_N (N), hub_forces_N (N, magnitudes), installation_tension_N (N),
     belt_length_m (m), tensioner_angle_deg (deg), spring_moment_Nm (N m), converged;
     frequencies_hz (Hz, NaN when unstable), stable; campbell_hz (Hz, per ``rpm`` speed),
-    campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt).
+    campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt).  With
+    ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
+    tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
+    campbell_owner (the frequencies are then the lowest ``track``, sorted).
     """
     sc = parameters.set_values(scene, values)
     inst = statics.install(sc)
@@ -556,8 +565,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     if sc.tensioner is not None:
         conds.insert(0, ~jnp.isfinite(inst.arm_angle))
         codes.insert(0, _CODE["no_arm_balance"])
-    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0)]
-    codes += [_CODE["not_converged"], _CODE["span_slack"]]
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
+    codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
     res: dict[str, jax.Array] = {}
     if "statics" in outputs:
         res["span_tensions_N"] = out["tensions"]
@@ -571,9 +580,15 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     nr = drive_modal.n_rigid_modes(sc)
     stable = jnp.asarray(True)
     if "modal" in outputs:
-        M, G, K = drive_modal.linearise(qi, sc, inst, v)
-        stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
-        res["frequencies_hz"] = jnp.where(stable, f[:modes], jnp.nan)
+        if track:
+            t = drive_modal.tracking_shapes(sc, qi, inst, v, track, gyroscopic, full=False)
+            stable, f = t["stable"], t["freqs"]
+            res["modal_W"], res["modal_owner"] = t["W"], t["owner"]
+        else:
+            M, G, K = drive_modal.linearise(qi, sc, inst, v)
+            stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
+            f = f[:modes]
+        res["frequencies_hz"] = jnp.where(stable, f, jnp.nan)
         res["stable"] = stable
     if "campbell" in outputs:
         transport = sc.model.has("transport")
@@ -581,13 +596,21 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         def at(r):
             vv = drive.belt_speed(sc, r)
             q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=4)
+            if track:
+                t = drive_modal.tracking_shapes(sc, q2, inst2, vv, track, transport, full=False)
+                ok = t["stable"] & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
+                return jnp.where(ok, t["freqs"], jnp.nan), ok, t["W"], t["owner"]
             M, G, K = drive_modal.linearise(q2, sc, inst2, vv)
             ok, f = drive_modal.frequencies_from_matrices(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
-            ok = ok & (info[0] > 0.5)
+            ok = ok & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
             return jnp.where(ok, f[:modes], jnp.nan), ok
 
-        res["campbell_hz"], res["campbell_stable"] = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
-    finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in ("frequencies_hz", "campbell_hz")]
+        got = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
+        res["campbell_hz"], res["campbell_stable"] = got[:2]
+        if track:
+            res["campbell_W"], res["campbell_owner"] = got[2:]
+    skip = ("frequencies_hz", "campbell_hz", *sweep_modes.SHAPE_KEYS)
+    finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in skip]
     conds += [~jnp.all(jnp.asarray([*finite, True])), ~stable]
     codes += [_CODE["non_finite"], _CODE["unstable"]]
     res["code"] = jnp.select(conds, [jnp.asarray(c) for c in codes], jnp.asarray(_CODE["ok"]))
@@ -595,7 +618,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
 
 
 def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options) -> dict:
-    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps)
+    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track)
 
 
 def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
@@ -751,11 +774,11 @@ def _dask_client(address):
 
 
 def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int,
-               devices: tuple | None, progress) -> list[dict]:
-    """The chunks one after the other in this process."""
+               devices: tuple | None, progress, post=lambda r: r) -> list[dict]:
+    """The chunks one after the other in this process (``post`` applied to each chunk's outputs)."""
     results, done, n = [], 0, sum(len(next(iter(c.values()))) for c in chunks)
     for c in chunks:
-        results.append(_run_chunk(scene, c, rpm, opts, size, devices))
+        results.append(post(_run_chunk(scene, c, rpm, opts, size, devices)))
         done += len(next(iter(c.values())))
         if progress is not None:
             progress(done, n)
@@ -763,8 +786,9 @@ def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options
 
 
 def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int, dask,
-              progress) -> list[dict]:
-    """The chunks as tasks on a dask.distributed cluster (results in chunk order)."""
+              progress, post=lambda r: r) -> list[dict]:
+    """The chunks as tasks on a dask.distributed cluster (results in chunk order; ``post`` applied
+    to each chunk's outputs as it arrives)."""
     from dask.distributed import as_completed
 
     client, owned = _dask_client(dask)
@@ -778,7 +802,7 @@ def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options,
         done = 0
         for fut in as_completed(futs):
             i = index[fut.key]
-            results[i] = fut.result()
+            results[i] = post(fut.result())
             done += len(next(iter(chunks[i].values())))
             if progress is not None:
                 progress(done, n)
@@ -793,7 +817,7 @@ def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options,
 
 def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] | list[str] = ("statics", "modal"),
              modes: int = 12, rpm=None, chunk: int | None = None, progress: Callable[[int, int], None] | None = None,
-             backend: str = "local", dask=None, devices="auto") -> dict[str, np.ndarray]:
+             backend: str = "local", dask=None, devices="auto", reference="auto") -> dict[str, np.ndarray]:
     """Evaluate a batch of cases with one compiled, vmapped function (in chunks).
 
     values: {parameter path: (n,) values} (file units, e.g. from :func:`cases`);
@@ -805,15 +829,28 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     ``BELTJAX_DASK_SCHEDULER`` address or a LocalCluster of one process per core);
     devices (local backend): shard each chunk over these JAX devices (``shard_map`` on
     the case axis; the chunk is a multiple of their number); "auto" uses every local
-    accelerator when there are several (see :func:`_devices` for CPU devices), None none.
+    accelerator when there are several (see :func:`_devices` for CPU devices), None none;
+    reference: the modes the frequency columns follow, :func:`beltjax.sweep_modes.references` ("auto": those of
+    ``scene`` itself, the nominal; None: no tracking, the lowest ``modes`` sorted per case).
+
+    Frequency columns follow modes, not ranks: column k of ``frequencies_hz`` is the nominal
+    scene's k-th mode (ascending at the nominal), found in each case by its shape (the
+    eigen-solve returns mass-whitened shapes of a few more modes than kept; each case's modes
+    are matched to the nominal's by MAC and an optimal assignment, repeated pairs as
+    subspaces: :func:`beltjax.sweep_modes.track_chunk`), so a mode keeps its column where modes cross; NaN where
+    no mode of the case matches it.  ``campbell_hz`` follows them from the lowest speed along
+    each case's speeds.  ``mode_labels`` / ``campbell_mode_labels`` name the columns (the
+    nominal's labels, from its shapes).
 
     Returns numpy arrays with the case on axis 0: ``status`` (str, :data:`STATUS`),
     ``code`` (int); statics: ``span_tensions_N`` (n, spans), ``hub_forces_N`` (n,
     route entries; magnitudes), ``installation_tension_N``, ``belt_length_m``,
     ``tensioner_angle_deg`` and ``spring_moment_Nm`` (tensioner drives), ``converged``;
-    modal: ``frequencies_hz`` (n, modes), ``stable``; campbell: ``campbell_rpm`` (S,),
-    ``campbell_hz`` (n, S, modes), ``campbell_stable`` (n, S).  Failed cases are NaN
-    in every output (unstable ones in the frequencies only).
+    modal: ``frequencies_hz`` (n, modes), ``mode_mac`` (n, modes: each column's MAC with the
+    nominal's mode), ``stable``; campbell: ``campbell_rpm`` (S,), ``campbell_hz`` (n, S,
+    modes), ``campbell_stable`` (n, S), ``campbell_mode_match`` (n,: the lowest MAC of a case's
+    tracking); and the lists ``mode_labels``, ``campbell_mode_labels`` (None: not tracked).
+    Failed cases are NaN in every output (unstable ones in the frequencies only).
     """
     outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     bad = [o for o in outputs if o not in OUTPUTS]
@@ -843,8 +880,14 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     modes = max(1, min(int(modes), drive.n_independent(scene)))
     dp = scene.route.order[drive.drive_pulley(scene)]
     moving = float(drive.belt_speed(scene)) != 0.0 or f"pulley.{dp}.speed_rpm" in values
-    opts = _Options(outputs=outputs, modes=modes, gyro=scene.model.has("transport") and moving)
-    invalid = _invalid(values, n)
+    refs, track = {}, 0
+    if reference is not None and ("modal" in outputs or "campbell" in outputs):
+        refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
+        track = mode_tracking.n_computed(modes, drive.n_independent(scene))
+    opts = _Options(outputs=outputs, modes=modes, gyro=scene.model.has("transport") and moving, track=track)
+    post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
+    pre = _precheck(scene, values, n)
+    invalid = pre != _CODE["ok"]
     if invalid.all():
         run_values = values
     else:  # evaluate a valid case in place of invalid ones (their outputs are discarded)
@@ -855,16 +898,21 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     size = _chunk_size(n, chunk, rpm.size, devices)
     chunks = [{k: v[sl] for k, v in run_values.items()} for sl in _slices(n, size)]
     if backend == "local":
-        results = _run_local(scene, chunks, rpm, opts, size, devices, progress)
+        results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post)
     else:
-        results = _run_dask(scene, chunks, rpm, opts, size, dask, progress)
+        results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
     out = {k: np.concatenate([r[k] for r in results]) for k in results[0]}
-    return _finish(out, invalid, rpm)
+    out = _finish(out, pre, rpm)
+    for key, o in (("mode_labels", "modal"), ("campbell_mode_labels", "campbell")):
+        if o in outputs:
+            out[key] = list(refs[o][1]) if refs.get(o) else None
+    return out
 
 
-def _finish(out: dict[str, np.ndarray], invalid: np.ndarray, rpm: np.ndarray) -> dict[str, np.ndarray]:
-    """Status strings; NaN in every output of a failed case (frequencies only for unstable ones)."""
-    code = np.where(invalid, _CODE["invalid_value"], out.pop("code")).astype(int)
+def _finish(out: dict[str, np.ndarray], pre: np.ndarray, rpm: np.ndarray) -> dict[str, np.ndarray]:
+    """Status strings; NaN in every output of a failed case (frequencies only for unstable ones).
+    pre: (n,) codes of the checks before the computation (0: passed)."""
+    code = np.where(pre != _CODE["ok"], pre, out.pop("code")).astype(int)
     failed = (code != _CODE["ok"]) & (code != _CODE["unstable"])
     for k, v in out.items():
         if v.dtype.kind == "f":
@@ -886,7 +934,10 @@ def _finish(out: dict[str, np.ndarray], invalid: np.ndarray, rpm: np.ndarray) ->
 def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Per-case output columns of :func:`evaluate`'s result, tidy: ``tension_<span>_N``,
     ``hub_<entry>_N``, ``installation_tension_N``, ``belt_length_m``, ``tensioner_angle_deg``,
-    ``spring_moment_Nm``, ``converged``, ``f<k>_hz``, ``stable``, ``campbell_unstable_from_rpm``."""
+    ``spring_moment_Nm``, ``converged``, ``f<k>_hz`` (the nominal scene's k-th mode, followed
+    by its shape: see :func:`evaluate`), ``mode_match`` (the lowest MAC of a case's columns
+    with the nominal's modes, 0 where one is not found), ``stable``,
+    ``campbell_unstable_from_rpm``, ``campbell_mode_match``."""
     cols: dict[str, np.ndarray] = {}
     if "span_tensions_N" in result:
         for j, name in enumerate(drive.span_names(scene)):
@@ -899,12 +950,18 @@ def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndar
     if "frequencies_hz" in result:
         for m in range(result["frequencies_hz"].shape[1]):
             cols[f"f{m + 1}_hz"] = result["frequencies_hz"][:, m]
+        if "mode_mac" in result:
+            mac = result["mode_mac"]
+            cols["mode_match"] = np.where(np.isfinite(mac).any(axis=1),
+                                          np.min(np.where(np.isfinite(mac), mac, 0.0), axis=1), np.nan)
         cols["stable"] = result["stable"]
     if "campbell_hz" in result:
         rpm = result["campbell_rpm"]
         bad = ~result["campbell_stable"]
         first = np.where(bad.any(axis=1), rpm[np.argmax(bad, axis=1)], np.nan)
         cols["campbell_unstable_from_rpm"] = np.where(result["code"] == _CODE["ok"], first, np.nan)
+        if "campbell_mode_match" in result:
+            cols["campbell_mode_match"] = result["campbell_mode_match"]
     return cols
 
 
@@ -963,18 +1020,43 @@ def write_campbell_csv(path: Path, result: Mapping[str, np.ndarray]) -> None:
 
 
 def _flexible_columns(cols: Mapping[str, np.ndarray], k: int = 6) -> list[str]:
+    """The first ``k`` frequency columns of flexible modes, a column equal to an earlier one in every
+    case (the other mode of a repeated pair) left out."""
     names = [c for c in cols if c.startswith("f") and c.endswith("_hz")]
     flex = [c for c in names if np.any(np.isfinite(cols[c])) and np.nanmax(cols[c]) >= drive_modal.RIGID_HZ]
-    return flex[:k]
+    out: list[str] = []
+    for c in flex:
+        if not any(np.allclose(cols[c], cols[d], rtol=1e-6, equal_nan=True) for d in out):
+            out.append(c)
+    return out[:k]
+
+
+def _axis_label(path: str) -> str:
+    """A parameter path with its unit, drawn literally: ``belt.EI [N m^2]``."""
+    from beltjax.plotting import literal
+
+    u = parameters.unit(path)
+    return literal(path, 60) + (f" [{u}]" if u else "")
+
+
+def _column_label(name: str) -> str:
+    """The quantity and unit of an output column (``tension_<span>_N`` -> ``span tension [N]``)."""
+    for prefix, what in (("tension_", "span tension"), ("hub_", "hub force")):
+        if name.startswith(prefix) and name.endswith("_N"):
+            return f"{what} [N]"
+    if name.startswith("f") and name.endswith("_hz"):
+        return "frequency [Hz]"
+    return {"installation_tension_N": "installation tension [N]", "belt_length_m": "belt length [m]",
+            "tensioner_angle_deg": "tensioner arm angle [deg]", "spring_moment_Nm": "spring moment [N m]",
+            "campbell_unstable_from_rpm": "unstable from [rpm]"}.get(name, name)
 
 
 def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> list[Path]:
     """Outputs against the first grid parameter (lines: the other grid axes; with random samples
-    the mean over the samples and a min-max band).  Writes sweep_frequencies.png and sweep_statics.png."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    the mean over the samples and a min-max band).  Writes sweep_frequencies.png and sweep_statics.png.
+    Axes carry units (the parameter's, from :func:`beltjax.parameters.unit`); lines that lie on
+    each other are drawn dashed over the first with a note (:func:`beltjax.plotting.coinciding`)."""
+    from beltjax.plotting import coinciding, literal, literal_wrapped, overlay_style, save, subplots
 
     shape = (*spec.grid_shape, spec.samples if spec.random else 1)
     x = spec.grid[0].values
@@ -982,56 +1064,62 @@ def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> 
     if len(others) > 12:
         others = others[:: math.ceil(len(others) / 12)]
     written = []
-    groups = [("sweep_frequencies.png", _flexible_columns(cols, 6), "frequency [Hz]"),
-              ("sweep_statics.png", [c for c in cols if c.startswith("tension_") or c.startswith("hub_")][:6], "[N]")]
-    for fname, names, unit in groups:
+    groups = [("sweep_frequencies.png", _flexible_columns(cols, 6)),
+              ("sweep_statics.png", [c for c in cols if c.startswith("tension_") or c.startswith("hub_")][:6])]
+    for fname, names in groups:
         if not names:
             continue
         nc = min(3, len(names))
         nr = math.ceil(len(names) / nc)
-        fig, axes = plt.subplots(nr, nc, figsize=(4.6 * nc, 3.4 * nr), squeeze=False)
+        fig, axes = subplots(nr, nc, figsize=(4.6 * nc, 3.4 * nr), squeeze=False)
         for ax, name in zip(axes.flat, names):
             Y = np.asarray(cols[name], float).reshape(shape)
+            curves = []
             for o in others:
                 y = Y[(slice(None), *o)]
                 with warnings.catch_warnings():  # all-NaN rows (failed cases) plot as gaps
                     warnings.simplefilter("ignore", RuntimeWarning)
                     mean, lo, hi = np.nanmean(y, -1), np.nanmin(y, -1), np.nanmax(y, -1)
-                lab = ", ".join(f"{a.parameter} = {a.values[i]:.4g}" for a, i in zip(spec.grid[1:], o)) or None
-                line, = ax.plot(x, mean, marker="o", ms=3, label=lab)
+                lab = ", ".join(f"{literal(a.parameter, 40)} = {a.values[i]:.4g}"
+                                + (f" {parameters.unit(a.parameter)}" if parameters.unit(a.parameter) else "")
+                                for a, i in zip(spec.grid[1:], o)) or None
+                curves.append((lab, mean, lo, hi))
+            over = coinciding([c[1] for c in curves])
+            for j, (lab, mean, lo, hi) in enumerate(curves):
+                ls, note = overlay_style(over, [c[0] or "" for c in curves], j)
+                line, = ax.plot(x, mean, marker="o" if over[j] is None else "x", ms=3, ls=ls,
+                                label=lab + note if lab else None)
                 if shape[-1] > 1:
                     ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
-            title = name
+            title = literal(name, 60)
             if labels and name.startswith("f") and name[1:-3].isdigit():
                 m = int(name[1:-3]) - 1
                 if m < len(labels):
-                    title = f"{name} (nominal scene: {labels[m]})"
+                    title = f"{literal(name, 60)}: {literal(labels[m], 60)}"
             ax.set_title(title, fontsize=8)
-            ax.set_xlabel(spec.grid[0].parameter, fontsize=8)
-            ax.set_ylabel(unit if unit != "[N]" else f"{name.split('_')[0]} [N]", fontsize=8)
+            ax.set_xlabel(_axis_label(spec.grid[0].parameter), fontsize=8)
+            ax.set_ylabel(_column_label(name), fontsize=8)
             ax.grid(alpha=0.3)
             ax.tick_params(labelsize=7)
-            if lab and name == names[0]:
+            if curves[0][0] and name == names[0]:
                 ax.legend(fontsize=6)
         for ax in list(axes.flat)[len(names):]:
             ax.set_visible(False)
         note = " (mean over the random samples; band: min-max)" if shape[-1] > 1 else ""
         if fname == "sweep_frequencies.png":
-            note += "\nf_k: the k-th frequency of each case, sorted, not tracked (a mode may change rank across cases)"
-        fig.suptitle((spec.description or "parametric sweep") + note, fontsize=9)
-        fig.tight_layout()
-        fig.savefig(path / fname, dpi=100)
-        plt.close(fig)
+            note += ("\nf_k: the nominal scene's k-th mode, followed into every case by its shape (a column equal to "
+                     "an earlier one in every case, a repeated pair's, is drawn once)" if labels else
+                     "\nf_k: the k-th frequency of each case, sorted (a mode may change rank across cases)")
+        fig.suptitle(literal_wrapped(spec.description or "parametric sweep", 120) + note, fontsize=9)
+        save(fig, path / fname, dpi=100)
         written.append(path / fname)
     return written
 
 
 def plot_histograms(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> Path | None:
-    """Histograms of span tensions and of the lowest flexible frequencies (sweep_histograms.png)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Histograms of span tensions and of the lowest flexible frequencies (sweep_histograms.png);
+    x axes: the quantity and its unit, y axes: the number of cases."""
+    from beltjax.plotting import literal, literal_wrapped, save, subplots
 
     names = [c for c in cols if c.startswith("tension_")] + _flexible_columns(cols, 4)
     names += [c for c in ("belt_length_m", "tensioner_angle_deg") if c in cols]
@@ -1040,54 +1128,56 @@ def plot_histograms(spec: Spec, cols, path: Path, labels: list[str] | None = Non
         return None
     nc = min(3, len(names))
     nr = math.ceil(len(names) / nc)
-    fig, axes = plt.subplots(nr, nc, figsize=(4.4 * nc, 3.2 * nr), squeeze=False)
+    fig, axes = subplots(nr, nc, figsize=(4.4 * nc, 3.4 * nr), squeeze=False)
     for ax, name in zip(axes.flat, names):
         y = np.asarray(cols[name], float)
         y = y[np.isfinite(y)]
         ax.hist(y, bins=min(40, max(5, int(np.sqrt(y.size)))), color="tab:blue", alpha=0.8)
-        title = name
+        title = literal(name, 60)
         if labels and name.startswith("f") and name[1:-3].isdigit() and int(name[1:-3]) - 1 < len(labels):
-            title = f"{name}: {labels[int(name[1:-3]) - 1]}"
+            title = f"{title}: {literal(labels[int(name[1:-3]) - 1], 60)}"
         ax.set_title(f"{title}\nmean {y.mean():.5g}, std {y.std():.3g}", fontsize=8)
+        ax.set_xlabel(_column_label(name), fontsize=8)
+        ax.set_ylabel("cases", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(names):]:
         ax.set_visible(False)
-    fig.suptitle(spec.description or "random sweep", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path / "sweep_histograms.png", dpi=100)
-    plt.close(fig)
+    fig.suptitle(literal_wrapped(spec.description or "random sweep", 120), fontsize=9)
+    save(fig, path / "sweep_histograms.png", dpi=100)
     return path / "sweep_histograms.png"
 
 
 def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.0)) -> Path:
-    """Campbell curves of every case (thin lines) with order lines (sweep_campbell.png)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Campbell curves of every case (thin lines) with order lines (sweep_campbell.png): one colour
+    per mode (the nominal's, followed by its shape), its label in the legend.  A mode whose
+    curves lie on an earlier mode's in every case is drawn dashed over it, with a note."""
+    from beltjax.plotting import coinciding, colormap, literal, overlay_style, save, subplots
 
     rpm, F = result["campbell_rpm"], result["campbell_hz"]
-    fig, ax = plt.subplots(figsize=(10, 6))
+    fig, ax = subplots(figsize=(10, 6))
     flex = [m for m in range(F.shape[2]) if np.any(np.isfinite(F[:, :, m])) and np.nanmax(F[:, :, m]) >= drive_modal.RIGID_HZ]
-    cmap = plt.get_cmap("tab10")
+    colour = colormap(10)
     alpha = max(0.05, min(0.8, 8.0 / max(F.shape[0], 1)))
+    over = coinciding([F[:, :, m] for m in flex])
+    labels = result.get("campbell_mode_labels") or []
+    names = [f"mode {m + 1}" + (f": {literal(labels[m], 60)}" if m < len(labels) else "") for m in flex]
     for j, m in enumerate(flex):
+        ls, note = overlay_style(over, names, j)
         for i in range(F.shape[0]):
-            ax.plot(rpm, F[i, :, m], color=cmap(j % 10), lw=0.8, alpha=alpha, label=f"mode {m + 1}" if i == 0 else None)
+            ax.plot(rpm, F[i, :, m], color=colour(j), lw=0.8 if over[j] is None else 1.2, ls=ls, alpha=alpha,
+                    label=names[j] + note if i == 0 else None)
     top = 1.2 * np.nanmax(F[:, 0, flex]) if flex and np.any(np.isfinite(F[:, 0, flex])) else 100.0
     ax.set_ylim(0, top)
     for k in orders:
         ax.plot(rpm, k * rpm / 60.0, ls="--", color="0.35", lw=1.0)
-    ax.set_xlabel(f"{drive_name} speed [rpm]")
+    ax.set_xlabel(f"{literal(drive_name, 60)} speed [rpm]")
     ax.set_ylabel("natural frequency [Hz]")
     ax.set_title(f"Campbell diagrams of {F.shape[0]} cases (order lines {', '.join(f'{k:g}x' for k in orders)})",
                  fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.tight_layout()
-    fig.savefig(path / "sweep_campbell.png", dpi=100)
-    plt.close(fig)
+    save(fig, path / "sweep_campbell.png", dpi=100)
     return path / "sweep_campbell.png"
 
 
@@ -1095,21 +1185,11 @@ def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.
 
 
 def progress_bar(label: str = "sweep") -> Callable[[int, int], None]:
-    """A progress callback printing ``label [#####     ] done/total cases (elapsed)`` to stderr
-    (at most 4 times a second, and at the end)."""
-    t0 = time.perf_counter()
-    last = [-1.0]
+    """A progress callback drawing ``label [#####     ] done/total cases (elapsed)`` on stderr
+    (:func:`beltjax.progress.counter`: redrawn in place on a terminal, whole lines elsewhere)."""
+    from beltjax.progress import counter
 
-    def show(done: int, total: int) -> None:
-        now = time.perf_counter() - t0
-        if done < total and now - last[0] < 0.25:  # at most 4 updates a second
-            return
-        last[0] = now
-        bar = "#" * int(30 * done / max(total, 1))
-        end = "\n" if done >= total else ""
-        print(f"\r  {label} [{bar:<30}] {done}/{total} cases ({now:6.1f} s)", end=end, file=sys.stderr, flush=True)
-
-    return show
+    return counter(f"  {label}", "cases")
 
 
 def summary_table(cols: Mapping[str, np.ndarray], stats: Mapping[str, dict], labels: list[str] | None = None,
@@ -1131,18 +1211,6 @@ def summary_table(cols: Mapping[str, np.ndarray], stats: Mapping[str, dict], lab
     return "\n".join(lines)
 
 
-def nominal_labels(scene: Scene, modes: int) -> tuple[list[str], list[float]] | None:
-    """Labels and frequencies (Hz) of the lowest ``modes`` modes of the nominal scene, or None
-    when its modal analysis fails (labels are per case expensive: only the nominal is labelled)."""
-    try:
-        m = drive_modal.analyse_modes(scene)
-    except statics.StaticsError:
-        return None
-    if not m.stable:
-        return None
-    return list(m.labels[:modes]), [float(x) for x in m.frequencies_hz[:modes]]
-
-
 def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: Mapping[str, np.ndarray],
            nominal: tuple[list[str], list[float]] | None = None, timing: Mapping[str, Any] | None = None) -> dict:
     """sweep.json contents: the spec, the statistics of every output column, the failures by
@@ -1160,6 +1228,7 @@ def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: M
         "outputs": list(spec.outputs),
         "columns": ["case", *values, *cols, "status"],
         "nominal_modes": None if nominal is None else {"labels": nominal[0], "frequencies_hz": nominal[1]},
+        "frequency_columns": _columns_meaning(result),
         "summary": {k: statistics(v) for k, v in cols.items() if k not in ("converged", "stable")},
         "ok": int(np.sum(result["status"] == "ok")),
         "failed": int(sum(v["count"] for k, v in fails.items() if k != "unstable")),
@@ -1167,6 +1236,16 @@ def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: M
         "failures": fails,
         **(timing or {}),
     }
+
+
+def _columns_meaning(result: Mapping[str, Any]) -> str | None:
+    """What the f<k>_hz (and sweep_campbell.csv) columns hold, for sweep.json."""
+    if "frequencies_hz" not in result and "campbell_hz" not in result:
+        return None
+    if result.get("mode_labels") or result.get("campbell_mode_labels"):
+        return ("f<k>_hz: the nominal scene's k-th mode (nominal_modes), followed into every case by its shape "
+                "(mass-weighted MAC, optimal assignment; NaN: not found); mode_match: a case's lowest MAC")
+    return "f<k>_hz: the k-th lowest frequency of each case (sorted: the nominal scene has no modes to follow)"
 
 
 def plots(scene: Scene, spec: Spec, result: Mapping[str, np.ndarray], out: Path,
@@ -1203,7 +1282,10 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
           + f"; outputs {', '.join(spec.outputs)}; backend {backend}")
     if backend == "dask":
         _dask_client_check()
-    nominal = nominal_labels(scene, spec.modes) if "modal" in spec.outputs or "campbell" in spec.outputs else None
+    refs = (sweep_modes.references(scene, spec.outputs, spec.modes, spec.rpm)
+            if "modal" in spec.outputs or "campbell" in spec.outputs else {})
+    ref = refs.get("modal") if "modal" in spec.outputs else refs.get("campbell")
+    nominal = (list(ref[1]), [float(x) for x in ref[0].freqs]) if ref else None
     labels = nominal[0] if nominal else None
     t0 = time.perf_counter()
     first: list[float] = []
@@ -1215,7 +1297,7 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
         bar(done, total)
 
     result = evaluate(scene, values, spec.outputs, spec.modes, spec.rpm, chunk=spec.chunk, progress=progress,
-                      backend=backend, dask=spec.dask_scheduler)
+                      backend=backend, dask=spec.dask_scheduler, reference=refs or None)
     wall = time.perf_counter() - t0
     devices = _devices() if backend == "local" else None
     size = _chunk_size(n, spec.chunk, 0 if spec.rpm is None else len(spec.rpm), devices)
@@ -1241,8 +1323,16 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
         print(f"  {s}: {v['count']} cases ({v['reason']}); first: {', '.join(str(i) for i in v['cases'][:8])}")
     print(summary_table(cols, data["summary"], labels))
     if labels:
-        print("(labels: the modes of the nominal scene; frequencies are sorted per case, not tracked across cases)")
-    print("wrote " + ", ".join(str(f) for f in files))
+        print("(f<k>: the nominal scene's k-th mode, followed into every case by its shape; mode_match: a case's "
+              "lowest MAC with the nominal's modes)")
+        low = np.asarray(cols.get("mode_match", []), float)
+        n_low = int(np.sum(low < mode_tracking.UNCERTAIN_MAC))
+        if n_low:
+            print(f"note: in {n_low} cases a mode's shape differs from the nominal's (mode_match < "
+                  f"{mode_tracking.UNCERTAIN_MAC:g}; NaN: not found): its column holds the closest mode")
+    from beltjax.outputs import wrote
+
+    wrote(files)  # printed here, or by the command line once the files are moved into --out
     if data["ok"] + data["unstable"] == 0:
         print("beltjax: every case failed (see the status column of sweep.csv)", file=sys.stderr)
         return 1

@@ -45,13 +45,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, signals, statics
+from beltjax import critical, drive, excitation, signals, statics
+from beltjax.span_flags import run_warnings, slack_spans, slack_warning, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
 
 __all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt", "default_solver",
-           "slack_spans", "slack_warning"]
+           "slack_spans", "slack_warning", "supercritical_spans", "run_warnings"]
 
 
 class TransientError(BeltjaxError):
@@ -64,6 +65,10 @@ class TransientError(BeltjaxError):
 JACOBIAN_EVERY = 200
 #: most output samples of one run (memory: every channel is kept)
 MAX_OUTPUT_SAMPLES = 2_000_000
+#: most time steps of one fixed-step run (t_end / dt): a minute of the rotational model (about
+#: 3 us a step), hours of the hybrid one (0.25-0.65 ms a step with 8-16 elements per span:
+#: benchmarks/README.md, simulate() table)
+MAX_STEPS = 20_000_000
 #: Newton tolerance of the implicit steps: relative to max|y|, and absolute (units of y)
 NEWTON_RTOL, NEWTON_ATOL = 1e-9, 1e-9
 
@@ -135,7 +140,7 @@ def initial_state(scene: Scene):
     their moved ends.  Raises StaticsError (one line) when the drive has no equilibrium."""
     # statics needs none of the transient tables: strip them so that it compiles once per drive
     bare = dataclasses.replace(scene, initial=Initial(), simulation=Simulation(), torques=(), span_loads=())
-    st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)))
+    st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)), allow_supercritical=True)
     inst, qi0 = st.inst, jnp.asarray(st.qi)
     ini = scene.initial
     if ini.rotation_deg or ini.arm_angle_deg is not None:
@@ -177,7 +182,7 @@ def default_solver(scene: Scene) -> str:
     return "generalized_alpha" if drive.flexible(scene) else "dopri8"
 
 
-def _solver(scene: Scene):
+def _solver(scene: Scene, dtmax=None):
     sim = scene.simulation
     name = sim.solver
     if name == "generalized_alpha":
@@ -186,7 +191,10 @@ def _solver(scene: Scene):
             rtol=NEWTON_RTOL, atol=NEWTON_ATOL,
         )
         return solver, diffrax.ConstantStepSize()
-    ctrl = diffrax.PIDController(rtol=sim.rtol, atol=sim.atol)
+    ctrl = diffrax.PIDController(rtol=sim.rtol, atol=sim.atol, dtmax=dtmax)
+    jumps = excitation.jump_times(scene)  # the load windows' edges: stopped at, never stepped over
+    if jumps is not None:
+        ctrl = diffrax.ClipStepSizeController(ctrl, jump_ts=jumps)
     if name == "tsit5":
         return diffrax.Tsit5(), ctrl
     if name == "dopri8":
@@ -232,15 +240,17 @@ def _solve_chunk(term, solver, controller, y0, ts, dt0, max_steps: int, states):
 
 
 @eqx.filter_jit
-def _start(scene: Scene, inst, y0, t0, dt0):
-    """:func:`_start_states` of the scene's solver (:func:`_solver`)."""
-    return _start_states(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene), y0, t0, dt0)
+def _start(scene: Scene, inst, y0, t0, dt0, dtmax=None):
+    """:func:`_start_states` of the scene's solver (:func:`_solver`; dtmax: largest adaptive step, s)."""
+    return _start_states(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, t0, dt0)
 
 
 @eqx.filter_jit
-def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states):
-    """:func:`_solve_chunk` of the scene's vector field and solver (:func:`_solver`)."""
-    return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene), y0, ts, dt0, max_steps, states)
+def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states, dtmax=None):
+    """:func:`_solve_chunk` of the scene's vector field and solver (:func:`_solver`; dtmax:
+    largest adaptive step, s)."""
+    return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, ts, dt0, max_steps,
+                        states)
 
 
 # --------------------------------------------------------------------------- outputs
@@ -275,13 +285,13 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     _, Bd = drive.split_full(v, scene)
     tensions = drive.span_tensions(q, scene, inst)
     lam = drive.full_span_lengths(q, scene) / (drive.element_length(scene, inst) * drive.span_elements(scene))
-    forces = tensions
-    if scene.model.has("transport"):
-        forces = tensions - scene.belt.rhoA * c**2 * lam
+    pulley = critical.pulley_forces(tensions, lam, c, scene.belt.rhoA)  # whatever the effects
+    forces = pulley if scene.model.has("transport") else tensions
     phis, theta = drive.angles_and_arm(qi, scene, inst)
     out = dict(
         span_tensions_N=tensions,
         span_forces_N=forces,
+        _pulley_forces_N=pulley,  # for the critical-speed check; not an output channel
         hub_forces_N=bearings,
         hub_force_magnitudes_N=jnp.linalg.norm(bearings, axis=1),
         pulley_speeds_rpm=Bd[:n, 2] * 60.0 / (2 * jnp.pi),
@@ -353,7 +363,8 @@ class SimulationResult:
 
     t (nt,) s; channels: name -> array (nt,), (nt, k) or (nt, k, 2) in the units of
     :data:`UNITS`; columns: name -> labels of the k columns; meta: solver, step, steps,
-    wall and compile times (s), scene, slack_spans (:func:`slack_spans`); y: the state
+    wall and compile times (s), scene, slack_spans (:func:`slack_spans`), supercritical_spans
+    (:func:`supercritical_spans`), excitation_warnings (:mod:`beltjax.excitation`); y: the state
     (nt, 2 n_i) for further use.
     """
 
@@ -406,31 +417,6 @@ def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
         )
 
 
-def slack_spans(t, tensions, names) -> list[dict]:
-    """Spans whose elastic tension (N) fell to zero or below at an output sample of t (s).
-
-    Both fidelities assume taut spans wrapped on the pulleys: a belt cannot push, so where a
-    span's tension goes negative the real belt hangs slack and the model's answer there is
-    not physical.  Returns one record per such span: span, min_tension_N, t_first_s,
-    t_last_s (the first and last slack samples) and samples (how many); [] when all stayed
-    taut.  Dips shorter than the output interval can pass between samples.
-    """
-    out = []
-    for j, name in enumerate(names):
-        slack = np.flatnonzero(tensions[:, j] <= 0.0)
-        if slack.size:
-            out.append(dict(span=name, min_tension_N=float(np.min(tensions[:, j])), t_first_s=float(t[slack[0]]),
-                            t_last_s=float(t[slack[-1]]), samples=int(slack.size)))
-    return out
-
-
-def slack_warning(record: dict) -> str:
-    """One line saying that (and when) a span went slack, from a :func:`slack_spans` record."""
-    return (f"warning: span {record['span']!r} went slack ({record['samples']} output samples between t = "
-            f"{record['t_first_s']:.4g} and {record['t_last_s']:.4g} s, tension down to {record['min_tension_N']:.4g} N): "
-            "the model assumes taut spans, so its results there are not physical")
-
-
 _RESULT_MESSAGES = {
     "nonlinear_max_steps_reached": "the implicit (Newton) iteration did not converge",
     "max_steps_reached": "the solver hit max_steps (simulation.max_steps)",
@@ -452,12 +438,16 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
 
     dt: time step (s; default :func:`default_dt`); output_dt: output interval (s;
     default :func:`default_output_dt`, rounded to a whole number of steps for fixed-step
-    solvers); chunk_s: the run is integrated in chunks of this length (s; default t_end / 10,
-    0.05 to 1 s) with one compiled function, printing progress to stderr when ``progress``;
-    the solver's and step-size controller's states go on from chunk to chunk, so the result
-    does not depend on the chunks (to round-off for fixed steps).  Raises
-    :class:`TransientError` (one line) for bad arguments or a failed solver, and
-    StaticsError when the drive has no equilibrium to start from.
+    solvers, never below the step); chunk_s: the run is integrated in chunks of this length
+    (s; default t_end / 10, 0.05 to 1 s) with one compiled function, printing progress to
+    stderr when ``progress``; the solver's and step-size controller's states go on from
+    chunk to chunk, so the result does not depend on the chunks (to round-off for fixed
+    steps).  Raises :class:`TransientError` (one line) for bad arguments (an output interval
+    below a fixed step, more than :data:`MAX_STEPS` steps, forcing the step or the output
+    sampling cannot resolve: :mod:`beltjax.excitation`) or a failed solver, and StaticsError
+    when the drive has no equilibrium to start from.  Spans that go slack or pass the
+    critical speed (:mod:`beltjax.critical`) are recorded in ``meta`` (slack_spans,
+    supercritical_spans), as are excitation_warnings; :func:`run_warnings` words them.
     """
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise TransientError(f"t_end: must be a finite time > 0 s, got {t_end!r}")
@@ -469,6 +459,13 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     out_dt = default_output_dt(scene) if output_dt is None else float(output_dt)
     fixed = scene.simulation.solver == "generalized_alpha"
     if fixed:
+        if out_dt < dt * (1 - 1e-9):
+            from_scene = output_dt is None and scene.simulation.output_dt_s is not None
+            key = "simulation.output_dt_s" if from_scene else "output_dt"
+            raise TransientError(
+                f"{key}: {out_dt:.4g} s is below the time step dt = {dt:.4g} s of the fixed-step solver "
+                f"{scene.simulation.solver}, which gives outputs only at its steps: give an output interval >= dt "
+                "(a whole number of steps) or a smaller dt")
         out_dt = max(1, round(out_dt / dt)) * dt
     n_out = int(math.floor(t_end / out_dt + 1e-9))
     if n_out > MAX_OUTPUT_SAMPLES:
@@ -478,12 +475,24 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         )
     if n_out < 1:
         raise TransientError(f"t_end = {t_end!r} s is shorter than the output interval {out_dt:.3g} s")
+    forcing = excitation.check(scene, t_end, dt, out_dt, fixed)
+    if forcing.refused:
+        raise TransientError(forcing.refused[0])
+    if fixed and t_end / dt > MAX_STEPS:  # (an adaptive run's steps are bounded by simulation.max_steps)
+        raise TransientError(
+            f"t_end: {t_end:g} s needs {math.ceil(t_end / dt - 1e-9)} steps of dt = {dt:.3g} s, more than the "
+            f"limit of {MAX_STEPS} (about a minute of the rotational model, hours of the hybrid one): shorten the "
+            "run or raise dt")
+    dtmax = None if forcing.dtmax is None else jnp.asarray(forcing.dtmax)
     per_chunk = max(1, int(round((chunk_s or max(0.05, min(1.0, t_end / 10))) / out_dt)))
     n_chunks = -(-n_out // per_chunk)
     steps_per_chunk = int(math.ceil(per_chunk * out_dt / dt)) + 8
     max_steps = steps_per_chunk if fixed else scene.simulation.max_steps
 
     wall0 = time.perf_counter()
+    from beltjax.progress import Reporter, bar
+
+    reporter = Reporter()  # progress on stderr
     inst, qi0, qd0 = initial_state(scene)
     # the compiled integrator and outputs do not depend on the initial-state table
     scene = dataclasses.replace(scene, initial=Initial())
@@ -492,13 +501,13 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     compile_s = None
     dt0 = jnp.asarray(dt, dtype=y.dtype)
     t0 = time.perf_counter()
-    states = _start(scene, inst, y, jnp.zeros_like(dt0), dt0)
+    states = _start(scene, inst, y, jnp.zeros_like(dt0), dt0, dtmax)
     for c in range(n_chunks):
         k0 = c * per_chunk
         ts = (k0 + np.arange(per_chunk + 1)) * out_dt
         if c:
             t0 = time.perf_counter()
-        ys, code, nst, n_ok, states = _integrate_chunk(scene, inst, y, jnp.asarray(ts), dt0, max_steps, states)
+        ys, code, nst, n_ok, states = _integrate_chunk(scene, inst, y, jnp.asarray(ts), dt0, max_steps, states, dtmax)
         code = int(code)
         if not fixed:  # the next chunk's first step: this chunk's mean accepted step
             dt0 = jnp.asarray((ts[-1] - ts[0]) / max(1, int(n_ok)), dtype=y.dtype)
@@ -527,16 +536,16 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         if progress:
             done = min(ts[-1], t_end)
             el = time.perf_counter() - wall0
-            bar = "#" * int(30 * done / t_end)
-            print(f"\r  simulate [{bar:<30}] t = {done:7.3f} / {t_end:g} s  ({el:6.1f} s)", end="", file=sys.stderr)
+            reporter.update(f"  simulate {bar(done / t_end)} t = {done:7.3f} / {t_end:g} s  ({el:6.1f} s)")
     if progress:
-        print(file=sys.stderr)
+        reporter.finish()
     wall = time.perf_counter() - wall0
     t = np.concatenate(ts_all)
     ys = np.concatenate(ys_all)
     keep = t <= t_end + 1e-12
     t, ys = t[keep], ys[keep]
     chans = {k: np.asarray(v) for k, v in _outputs(jnp.asarray(t), jnp.asarray(ys), scene, inst).items()}
+    pulley_forces = chans.pop("_pulley_forces_N")
     cols = _columns(scene)
     if not cols["drive_torques_Nm"]:
         chans.pop("drive_torques_Nm")
@@ -564,5 +573,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         first_chunk_s=compile_s,
         installation_tension_N=float(inst.tension),
         slack_spans=slack_spans(t, chans["span_tensions_N"], cols["span_tensions_N"]),
+        supercritical_spans=supercritical_spans(t, pulley_forces, cols["span_forces_N"], chans["belt_speed_m_s"]),
+        excitation_warnings=[*forcing.warnings,
+                             *excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed)],
     )
     return SimulationResult(t=t, channels=chans, columns=cols, meta=meta, y=ys)

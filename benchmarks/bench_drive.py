@@ -13,6 +13,8 @@ the scene can change without recompiling):
 * modal       ``drive_modal.modes_at`` (linearisation by autodiff + eigh, at the equilibrium)
 * modal+      the whole ``drive_modal.analyse_modes`` (adds the labels, numpy)
 * Campbell    ``campbell.campbell_frequencies`` over 100 speeds (vmapped, chunks of 32)
+* Campbell, tracked  ``campbell.analyse_campbell`` (what ``beltjax campbell`` runs): the same
+  batch with mode shapes, modes tracked across speeds and labelled from their shapes (numpy)
 
 Accuracy against the mesh: the two-pulley bench at T = 600 N with 4, 8, 16 and
 24 elements per span against 32 (first 20 modes).
@@ -73,10 +75,18 @@ def main():
     t_c = _common.time_steady(campbell.campbell_frequencies, sc, rpm, 20, repeats=5, max_total_s=10.0)
     results["campbell_100_speeds"] = dict(scene="two_pulley_T200 + transport", n_modes=20, steady=t_c,
                                           first_call_s=first)
-    t2 = _common.table(["scene", "speeds", "modes", "time", "per speed", "first call (compile)"],
-                       [["two_pulley_T200 + transport", 100, 20, _common.fmt_time(t_c["median_s"]),
-                         _common.fmt_time(t_c["median_s"] / 100), _common.fmt_time(first)]],
-                       "Campbell diagram (vmapped statics + gyroscopic modes)")
+    t0 = time.perf_counter()
+    campbell.analyse_campbell(sc, rpm, n_modes=20)
+    first_tr = time.perf_counter() - t0
+    t_tr = _common.time_steady(campbell.analyse_campbell, sc, rpm, n_modes=20, repeats=5, max_total_s=20.0)
+    results["campbell_tracked_100_speeds"] = dict(scene="two_pulley_T200 + transport", n_modes=20, steady=t_tr,
+                                                  first_call_s=first_tr)
+    t2 = _common.table(["entry point", "speeds", "modes", "time", "per speed", "first call (compile)"],
+                       [["campbell_frequencies (sorted)", 100, 20, _common.fmt_time(t_c["median_s"]),
+                         _common.fmt_time(t_c["median_s"] / 100), _common.fmt_time(first)],
+                        ["analyse_campbell (tracked, labelled)", 100, 20, _common.fmt_time(t_tr["median_s"]),
+                         _common.fmt_time(t_tr["median_s"] / 100), _common.fmt_time(first_tr)]],
+                       "Campbell diagram of two_pulley_T200 + transport (vmapped statics + gyroscopic modes)")
     print(t2)
 
     base = _scene("two_pulley_T600")

@@ -160,8 +160,12 @@ def campbell_throughput(scene, values, rpm) -> dict:
         F.append(campbell.campbell_frequencies(sc, rpm, MODES)[0])
     wall_l = time.perf_counter() - t0
     F = np.stack(F)
-    ok = np.isfinite(F[:, :, 1:])
-    diff = float(np.max(np.abs(res["campbell_hz"][:, :, 1:][ok] / F[:, :, 1:][ok] - 1)))
+    # the sweep's columns follow the nominal's modes (tracked), campbell_frequencies' are sorted: each
+    # tracked frequency within the sorted range must be one of the case's sorted frequencies
+    T = res["campbell_hz"][:, :, 1:, None]
+    near = np.nanmin(np.abs(T / F[:, :, None, 1:] - 1), axis=-1)
+    inside = np.isfinite(T[..., 0]) & (T[..., 0] <= np.nanmax(F, axis=-1, keepdims=True))
+    diff = float(np.max(near[inside]))
     pts = n * len(rpm)
     return dict(cases=n, speeds=len(rpm), modes=MODES,
                 batched=dict(first_call_s=first_b, wall_s=wall_b, cases_per_s=n / wall_b, points_per_s=pts / wall_b,

@@ -52,7 +52,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import beltjax  # noqa: F401  (float64 in jax before any array is made)
-from identification.data import DataError, number, read_csv
+from beltjax.tomltable import show
+from identification.data import DataError, dataset_file, number, read_csv
 
 __all__ = [
     "ImpulseFit", "RecordFit", "fit_impulse", "fit_record", "decay_model", "matrix_pencil", "amplitude_spectrum",
@@ -288,16 +289,13 @@ class ImpulseFit:
     def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
         """Write ``<key>_<record>.png`` per record in directory ``out``: data and fit against time,
         and their amplitude spectra with the fitted natural frequencies."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from beltjax.plotting import literal, save, subplots
 
         out = pathlib.Path(out)
         out.mkdir(parents=True, exist_ok=True)
         paths = []
         for r in self.records:
-            fig, (ax, axs) = plt.subplots(2, 1, figsize=(8, 7))
+            fig, (ax, axs) = subplots(2, 1, figsize=(8, 7))
             c = r.offset or 0.0
             ax.plot(r.t, r.y - c, "-", lw=0.8, color="0.5", label="data")
             label = f"fit ({r.modes} mode{'s' if r.modes > 1 else ''})"
@@ -305,7 +303,7 @@ class ImpulseFit:
             ax.plot(r.t, r.y - r.fitted, "-", lw=0.6, color="C0", alpha=0.8, label="residual")
             ax.set_xlabel("time [s]")
             ax.set_ylabel(f"response - offset ({c:.6g})" if r.offset is not None else "response")
-            ax.set_title(f"{r.name} ({r.file})")
+            ax.set_title(f"{literal(r.name, 60)} ({literal(r.file, 60)})")
             ax.legend(fontsize=8)
             ax.grid(alpha=0.3)
             dt = 1.0 / r.sample_rate_hz
@@ -325,10 +323,8 @@ class ImpulseFit:
             axs.set_ylabel("amplitude (Hann)")
             axs.legend(fontsize=8)
             axs.grid(alpha=0.3, which="both")
-            fig.tight_layout()
             path = out / f"{self.key.replace('.', '_')}_{_safe(r.name)}.png"
-            fig.savefig(path, dpi=110)
-            plt.close(fig)
+            save(fig, path, dpi=110)
             paths.append(path)
         return paths
 
@@ -508,7 +504,7 @@ def _records(section: dict, key: str) -> list[tuple[str, dict]]:
 def fit_impulse(section: dict, base: pathlib.Path, key: str = "impulse") -> ImpulseFit:
     """Fit every record of an ``[impulse]`` section (keys in the module docstring); CSV paths are
     relative to ``base``.  Returns an :class:`ImpulseFit`; raises :class:`DataError` (one line)."""
-    fits = []
+    fits, plotted = [], {}
     for rkey, rec in _records(section, key):
         unknown = [k for k in rec if k not in RECORD_KEYS]
         if unknown:
@@ -518,14 +514,19 @@ def fit_impulse(section: dict, base: pathlib.Path, key: str = "impulse") -> Impu
             raise DataError(f"{rkey}.file", "missing (a CSV file with columns time_s, response)")
         modes = rec.get("modes", 1)
         if isinstance(modes, bool) or not isinstance(modes, int) or not 1 <= modes <= MAX_MODES:
-            raise DataError(f"{rkey}.modes", f"must be a whole number from 1 to {MAX_MODES}, got {modes!r}")
+            raise DataError(f"{rkey}.modes", f"must be a whole number from 1 to {MAX_MODES}, got {show(modes)}")
         offset = rec.get("offset", True)
         if not isinstance(offset, bool):
-            raise DataError(f"{rkey}.offset", f"must be true or false, got {offset!r}")
+            raise DataError(f"{rkey}.offset", f"must be true or false, got {show(offset)}")
         name = rec.get("name", pathlib.Path(fname).stem)
         if not isinstance(name, str) or not name:
-            raise DataError(f"{rkey}.name", f"must be a non-empty string, got {name!r}")
-        data = read_csv(pathlib.Path(base) / fname, ["time_s", "response"], f"{rkey} ({fname})")
+            raise DataError(f"{rkey}.name", f"must be a non-empty string, got {show(name)}")
+        if _safe(name) in plotted:  # the record's plot file would overwrite the other's
+            raise DataError(f"{rkey}.{'name' if 'name' in rec else 'file'}",
+                            f"record name {show(name)} is taken by {plotted[_safe(name)]} (its plot is named by "
+                            "it; a name defaults to the file's stem): give each record its own name")
+        plotted[_safe(name)] = rkey
+        data = read_csv(dataset_file(base, fname, f"{rkey}.file"), ["time_s", "response"], f"{rkey} ({fname})")
         t, y = data["time_s"], data["response"]
         t0 = number(rec, "t_start_s", rkey) if "t_start_s" in rec else float(t[0])
         t1 = number(rec, "t_end_s", rkey) if "t_end_s" in rec else float(t[-1])

@@ -1,4 +1,5 @@
-"""Reading identification datasets: the one-line error and the CSV reader every fit uses."""
+"""Reading identification datasets: the one-line error, where a dataset's files may be, and the CSV
+reader every fit uses."""
 
 from __future__ import annotations
 
@@ -8,7 +9,9 @@ from typing import Sequence
 
 import numpy as np
 
+from beltjax import textfile
 from beltjax.errors import BeltjaxError
+from beltjax.tomltable import show
 
 
 class DataError(BeltjaxError):
@@ -18,42 +21,76 @@ class DataError(BeltjaxError):
         super().__init__(message, key)
 
 
+def dataset_file(base, name: str, key: str) -> pathlib.Path:
+    """The file ``name`` (as the dataset writes it) of a dataset whose folder is ``base``.
+
+    A dataset names only files inside its own folder: an absolute path, a path through ``..``
+    and a link that resolves outside the folder are :class:`DataError` naming ``key``.
+    """
+    if not isinstance(name, str) or not name:
+        raise DataError(key, f"expected a file name (relative to the dataset's folder), got {show(name)}")
+    if "\0" in name:
+        raise DataError(key, "a file name cannot hold a NUL character")
+    pure = pathlib.PurePath(name)
+    if pure.is_absolute():
+        raise DataError(key, f"{show(name)} is an absolute path: a dataset names only files inside its "
+                             "own folder, relative to it")
+    if ".." in pure.parts:
+        raise DataError(key, f"{show(name)} leads out of the dataset's folder through '..': a dataset names "
+                             "only files inside its own folder")
+    root = pathlib.Path(base).resolve()
+    path = root / pure
+    try:
+        real = path.resolve()
+    except (OSError, RuntimeError):  # a loop of links
+        raise DataError(key, f"{show(name)}: a link that cannot be resolved") from None
+    if not real.is_relative_to(root):
+        raise DataError(key, f"{show(name)} is a link to a file outside the dataset's folder: a dataset "
+                             "names only files inside its own folder")
+    return path
+
+
 def read_csv(path: pathlib.Path, columns: Sequence[str], key: str, min_rows: int = 3) -> dict[str, np.ndarray]:
     """Columns of a CSV file with a header line: {name: float64 array}.
 
-    ``columns`` must all be present (extra columns are ignored); every value must be a finite
-    number; at least ``min_rows`` rows.  Raises :class:`DataError` naming ``key`` and the file.
+    The file is read by :func:`beltjax.textfile.read_text` (a regular file of at most 64 MiB,
+    UTF-8, a byte-order mark accepted).  ``columns`` must all be present (extra columns are
+    ignored); every value must be a finite number; at least ``min_rows`` rows.  Raises
+    :class:`DataError` naming ``key`` and the file, with a line and column, never the file's text.
     """
     path = pathlib.Path(path)
-    if not path.is_file():
-        raise DataError(key, f"file {str(path)!r} not found")
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as e:
-        raise DataError(key, f"cannot read {path.name}: {e}") from None
+    name = path.name if len(path.name) <= 60 else path.name[:40] + "..."
+
+    def fail(_, message):
+        raise DataError(key, f"{name}: {message}")
+
+    text = textfile.read_text(path, "csv", fail)
     lines = [(n, ln) for n, ln in enumerate(text.splitlines(), start=1)
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        raise DataError(key, f"{path.name} is empty")
+        raise DataError(key, f"{name} is empty")
     header = [h.strip() for h in lines[0][1].split(",")]
     missing = [c for c in columns if c not in header]
     if missing:
-        raise DataError(key, f"{path.name} lacks column(s) {', '.join(missing)} (has {', '.join(header)})")
+        raise DataError(key, f"{name} lacks column(s) {', '.join(missing)} (its header, line {lines[0][0]}, "
+                             f"has {len(header)} column(s))")
     idx = [header.index(c) for c in columns]
     rows = []
     for n, ln in lines[1:]:
         cells = [c.strip() for c in ln.split(",")]
         if len(cells) != len(header):
-            raise DataError(key, f"{path.name} line {n}: {len(cells)} values for {len(header)} columns")
-        try:
-            vals = [float(cells[i]) for i in idx]
-        except ValueError:
-            raise DataError(key, f"{path.name} line {n}: not a number in {ln.strip()!r}") from None
+            raise DataError(key, f"{name} line {n}: {len(cells)} values for {len(header)} columns")
+        vals = []
+        for c, i in zip(columns, idx):
+            try:
+                vals.append(float(cells[i]))
+            except ValueError:
+                raise DataError(key, f"{name} line {n}: not a number in column {i + 1} ({c})") from None
         if not all(math.isfinite(v) for v in vals):
-            raise DataError(key, f"{path.name} line {n}: NaN or infinite value")
+            raise DataError(key, f"{name} line {n}: NaN or infinite value")
         rows.append(vals)
     if len(rows) < min_rows:
-        raise DataError(key, f"{path.name} has {len(rows)} data rows; at least {min_rows} are needed")
+        raise DataError(key, f"{name} has {len(rows)} data rows; at least {min_rows} are needed")
     data = np.asarray(rows, dtype=np.float64)
     return {c: data[:, j] for j, c in enumerate(columns)}
 
@@ -66,7 +103,9 @@ def number(table: dict, name: str, key: str, positive: bool = False, default=Non
         raise DataError(f"{key}.{name}", "missing")
     v = table[name]
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise DataError(f"{key}.{name}", f"must be a number, got {v!r}")
+        raise DataError(f"{key}.{name}", f"must be a number, got {show(v)}")
+    if isinstance(v, int) and not -2**63 <= v < 2**63:
+        raise DataError(f"{key}.{name}", f"must be a number a float64 holds, got {show(v)}")
     v = float(v)
     if not math.isfinite(v):
         raise DataError(f"{key}.{name}", "must be finite")

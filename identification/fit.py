@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import json
 import pathlib
-import tomllib
 
+from beltjax import textfile
 from identification.data import DataError
 
 
@@ -40,16 +40,14 @@ SECTIONS = ("tensile", "torque_angle", "impulse", "modal")
 
 
 def load(path: pathlib.Path) -> dict:
-    """The dataset's TOML tables; :class:`DataError` for a missing or malformed file."""
+    """The dataset's TOML tables; :class:`DataError` for a missing file, one that is not a regular
+    file of bounded size, malformed TOML or values no key can carry (see :mod:`beltjax.textfile`)."""
     path = pathlib.Path(path)
-    if path.is_dir():
-        raise DataError("", f"{path}: is a directory, not a dataset file")
-    if not path.is_file():
-        raise DataError("", f"{path}: dataset file not found")
-    try:
-        data = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise DataError("", f"{path}: not valid TOML ({exc})") from None
+
+    def fail(key, message):
+        raise DataError(key, message)
+
+    data = textfile.load_toml(path, "dataset", textfile.keyed(fail))
     unknown = [k for k in data if k not in SECTIONS]
     if unknown:
         raise DataError(unknown[0], f"unknown section in {path.name} (known: {', '.join(SECTIONS)})")
@@ -80,6 +78,8 @@ def run(path: pathlib.Path, out: pathlib.Path) -> int:
         files += res.plot(out)
     (out / "fit.json").write_text(json.dumps(report, indent=2))
     (out / "fitted_parameters.toml").write_text("\n\n".join(blocks) + "\n")
-    print(f"\nwrote {out / 'fit.json'}, {out / 'fitted_parameters.toml'}"
-          + "".join(f", {f}" for f in files))
+    from beltjax import outputs
+
+    print()
+    outputs.wrote([out / "fit.json", out / "fitted_parameters.toml", *files])
     return 0

@@ -53,7 +53,8 @@ import numpy as np
 
 from beltjax import drive, drive_modal, parameters, statics
 from beltjax.scene import Scene, SceneError, load_scene
-from identification.data import DataError, number
+from beltjax.tomltable import check_document, show
+from identification.data import DataError, dataset_file, number
 
 #: candidates within this relative distance of the chosen one form its repeated group
 GROUP_RTOL = 5e-3
@@ -100,6 +101,10 @@ class Configuration:
 # --------------------------------------------------------------------------- reading
 
 
+def _fail(key: str, message: str):
+    raise DataError(key, f"{key}: {message}")
+
+
 def _parse_mode(m, key: str) -> Measured | None:
     if not isinstance(m, dict):
         raise DataError(key, "a mode is a table { label = \"1st transverse\", frequency_hz = 30.0 }")
@@ -113,7 +118,7 @@ def _parse_mode(m, key: str) -> Measured | None:
         return None
     hit = _LABEL.match(label)
     if not hit:
-        raise DataError(f"{key}.label", f"{label!r} is not '<n>th transverse|longitudinal|rotational'")
+        raise DataError(f"{key}.label", f"{show(label)} is not '<n>th transverse|longitudinal|rotational'")
     f = number(m, "frequency_hz", key, positive=True)
     span = m.get("span")
     if span is not None and not isinstance(span, str):
@@ -130,13 +135,14 @@ def _parse_configuration(c, i: int, base: pathlib.Path) -> Configuration:
         raise DataError(f"{key}.{sorted(unknown)[0]}", f"unknown key (use {', '.join(sorted(_CONF_KEYS))})")
     if not isinstance(c.get("scene"), str):
         raise DataError(f"{key}.scene", "missing: the scene file of this configuration")
-    path = base / c["scene"]
-    if not path.is_file():
-        raise DataError(f"{key}.scene", f"file {str(path)!r} not found")
+    path = dataset_file(base, c["scene"], f"{key}.scene")
     try:
         scene = load_scene(path)
     except SceneError as exc:
-        raise DataError(f"{key}.scene", f"{path.name}: {exc}") from None
+        msg = str(exc)
+        if exc.key == str(path):  # about the file itself: it names the file, not a key
+            msg = msg[len(exc.key):].lstrip(": ")
+        raise DataError(f"{key}.scene", f"{path.name}: {msg}") from None
     modes = c.get("modes")
     if not isinstance(modes, list) or not modes:
         raise DataError(f"{key}.modes", "missing or empty: list the measured modes")
@@ -147,8 +153,11 @@ def _parse_configuration(c, i: int, base: pathlib.Path) -> Configuration:
     spans = drive.span_names(scene)
     for m in parsed:
         if m.span is not None and m.span not in spans:
-            raise DataError(f"{m.key}.span", f"no span {m.span!r} in {path.name} (spans: {', '.join(spans)})")
-    return Configuration(str(c.get("name", path.stem)), scene, parsed, key)
+            raise DataError(f"{m.key}.span", f"no span {show(m.span)} in {path.name} (spans: {', '.join(spans)})")
+    name = c.get("name", path.stem)
+    if not isinstance(name, str) or not name:
+        raise DataError(f"{key}.name", f"must be a non-empty string, got {show(name)}")
+    return Configuration(name, scene, parsed, key)
 
 
 def _strings(section, name, required):
@@ -159,6 +168,9 @@ def _strings(section, name, required):
         raise DataError(f"modal.{name}", "must be a list of parameter paths (strings)")
     if len(set(v)) != len(v):
         raise DataError(f"modal.{name}", "lists a parameter twice")
+    if "belt.length" in v and "belt.static_tension" in v:
+        raise DataError(f"modal.{name}", "lists both belt.length and belt.static_tension: the belt is given by "
+                                         "one of them, so setting one overwrites the other")
     return v
 
 
@@ -180,6 +192,7 @@ def parse(section: dict, base: pathlib.Path) -> Problem:
     """The ``[modal]`` section of a dataset (see the module docstring); :class:`DataError` if bad."""
     if not isinstance(section, dict):
         raise DataError("modal", "must be a table")
+    check_document(section, _fail, key="modal")  # bounds of every value, also for a section given as a dict
     unknown = set(section) - _KEYS
     if unknown:
         raise DataError(f"modal.{sorted(unknown)[0]}", f"unknown key (use {', '.join(sorted(_KEYS))})")
@@ -189,11 +202,19 @@ def parse(section: dict, base: pathlib.Path) -> Problem:
     per = _strings(section, "per_configuration", False)
     for p in per:
         if p not in paths:
-            raise DataError("modal.per_configuration", f"{p!r} is not among modal.parameters")
+            raise DataError("modal.per_configuration", f"{show(p)} is not among modal.parameters")
     confs = section.get("configuration")
     if not isinstance(confs, list) or not confs:
         raise DataError("modal.configuration", "missing: add [[modal.configuration]] tables")
     configurations = [_parse_configuration(c, i, base) for i, c in enumerate(confs)]
+    named: dict[str, str] = {}
+    for raw, c in zip(confs, configurations):  # a name keys the per-configuration values: no two alike
+        if c.name in named:
+            given = "name" if "name" in raw else "scene"
+            raise DataError(f"{c.key}.{given}", f"configuration name {show(c.name)} is also that of "
+                                                f"{named[c.name]} (a name defaults to the scene file's stem): "
+                                                "give each configuration its own name")
+        named[c.name] = c.key
     for c in configurations:
         for p in paths:
             try:
@@ -204,7 +225,7 @@ def parse(section: dict, base: pathlib.Path) -> Problem:
     sigma = None if sigma is None else number(section, "frequency_std_hz", "modal", positive=True)
     it = section.get("max_iterations", 50)
     if isinstance(it, bool) or not isinstance(it, int) or it < 1:
-        raise DataError("modal.max_iterations", f"must be a positive integer, got {it!r}")
+        raise DataError("modal.max_iterations", f"must be a positive integer, got {show(it)}")
     return Problem(configurations, paths, per, sigma, it)
 
 
@@ -277,7 +298,7 @@ def match(freqs, labels, modes: list[Measured], conf_key: str = "") -> np.ndarra
         cand = _candidates(labels, m)
         if not cand:
             kinds = sorted({lab for lab in labels if lab != "rigid body"}, key=labels.index)[:8]
-            raise DataError(m.key, f"no model mode labelled {m.label!r}"
+            raise DataError(m.key, f"no model mode labelled {show(m.label)}"
                             f"{' in span ' + m.span if m.span else ''} (model modes: {'; '.join(kinds)} ...)")
         k = min(cand, key=lambda c: abs(freqs[c] - m.frequency_hz))
         if abs(freqs[k] - m.frequency_hz) > MATCH_RTOL * m.frequency_hz:
@@ -408,37 +429,30 @@ class ModalFit:
 
     def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
         """modal_fit_residuals.png (residual bars per mode) and modal_fit_loss.png (convergence)."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from beltjax.plotting import literal, save, subplots
 
         files = []
-        fig, ax = plt.subplots(figsize=(max(6.0, 0.35 * len(self.modes) + 2), 4))
+        fig, ax = subplots(figsize=(max(6.0, 0.35 * len(self.modes) + 2), 4))
         x = np.arange(len(self.modes))
         before = [m["model_before_hz"] - m["measured_hz"] for m in self.modes]
         after = [m["residual_hz"] for m in self.modes]
         ax.bar(x - 0.2, before, 0.4, label="start", color="0.7")
         ax.bar(x + 0.2, after, 0.4, label="fitted", color="C0")
         ax.axhline(0, color="k", lw=0.8)
-        ax.set_xticks(x, [f"{m['configuration']}: {m['label']}" for m in self.modes], rotation=70, ha="right",
-                      fontsize=7)
+        ax.set_xticks(x, [literal(f"{m['configuration']}: {m['label']}", 60) for m in self.modes], rotation=70,
+                      ha="right", fontsize=7)
         ax.set_ylabel("model - measured [Hz]")
         ax.set_title("Modal fit: frequency residual per mode")
         ax.legend()
-        fig.tight_layout()
         files.append(out / "modal_fit_residuals.png")
-        fig.savefig(files[-1], dpi=120)
-        plt.close(fig)
-        fig, ax = plt.subplots(figsize=(5, 3.5))
+        save(fig, files[-1], dpi=120)
+        fig, ax = subplots(figsize=(5, 3.5))
         ax.semilogy(np.arange(len(self.loss_history)), self.loss_history, marker=".")
         ax.set_xlabel("Levenberg-Marquardt iteration")
         ax.set_ylabel("loss")
         ax.set_title("Modal fit: convergence")
-        fig.tight_layout()
         files.append(out / "modal_fit_loss.png")
-        fig.savefig(files[-1], dpi=120)
-        plt.close(fig)
+        save(fig, files[-1], dpi=120)
         return files
 
 
@@ -509,6 +523,9 @@ def _least_squares(res, jac):
     ~1 s per iteration and converges in under 10.  The tensile fit uses optax, where its model
     is cheap and the starts are many."""
     def run(x0, args, max_iter: int, progress: bool = False, check=None):
+        from beltjax.progress import Reporter
+
+        reporter = Reporter()  # progress on stderr
         x = np.asarray(x0, dtype=float)
         if check is not None:
             check(np.asarray(jac(x, *args)))
@@ -532,11 +549,13 @@ def _least_squares(res, jac):
                     break
             hist.append(0.5 * float(r @ r))
             if progress:
-                print(f"  LM {it:3d}  loss {hist[-1]:.6g}  step {np.max(np.abs(dx)):.2e}", flush=True)
+                reporter.update(f"modal fit: LM {it:3d}  loss {hist[-1]:.6g}  step {np.max(np.abs(dx)):.2e}")
             # converged, or stalled: a measured mode's matched model mode (fixed by its index in
             # the sorted spectrum) crossed another one; the caller matches again from here
             if np.max(np.abs(dx)) < 1e-9 or hist[-2] - hist[-1] <= STALL_RTOL * hist[-2]:
                 break
+        if progress:
+            reporter.finish()
         return jnp.asarray(x), hist, it
 
     return run
@@ -593,7 +612,9 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
         Ws, fms, mask, slots = _pad(groups, confs, Wlist)
 
         if progress:
-            print(f"modal fit: round {rounds}, {len(lay.names)} values, {m_total} modes", flush=True)
+            from beltjax.progress import message
+
+            message(f"modal fit: round {rounds}, {len(lay.names)} values, {m_total} modes")
         x, hist, n_it = minimise(x, (Ws, fms, sig0), problem.max_iterations, progress,
                                  check=lambda J: _identifiability(J[mask] * _unit_scale(x, lay), lay.names))
         iterations += n_it

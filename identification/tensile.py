@@ -4,7 +4,8 @@ Dataset section (CSV paths relative to the dataset file)::
 
     [tensile]
     specimen_length_m = 0.1462     # free length L of the specimen between the grips
-    # scene_frequency_hz = 10.0    # frequency of the scene block's EA and CA (default 10 Hz)
+    # scene_frequency_hz = 100.0   # frequency of the scene block's EA and CA (default 10 Hz):
+                                   # that of the drive's modes (CA falls about as 1/f)
     [[tensile.record]]             # one sinusoidal test each (at least 4, at 4 or more frequencies)
     file = "tensile_f10.csv"       # columns: time_s, displacement_m, force_N
     frequency_hz = 10.0
@@ -67,7 +68,8 @@ import numpy as np
 import optax
 
 import beltjax  # noqa: F401  (float64)
-from identification.data import DataError, number, read_csv
+from beltjax.tomltable import show
+from identification.data import DataError, dataset_file, number, read_csv
 
 #: largest accepted RMS of a sine fit's residual, as a share of the signal's oscillating RMS
 MAX_RESIDUAL_SHARE = 0.2
@@ -83,6 +85,8 @@ REPORT_FREQUENCIES_HZ = (0.01, 10.0, 60.0)
 CHI2_WARN = 4.0
 #: default frequency of the scene block (Hz)
 SCENE_FREQUENCY_HZ = 10.0
+#: frequencies of the EA / CA rows listed in the scene block's comment (Hz), besides the chosen one
+BLOCK_FREQUENCIES_HZ = (1.0, 10.0, 30.0, 100.0, 300.0)
 #: optimiser settings: starts minimised together, L-BFGS iterations, Levenberg-Marquardt iterations
 N_STARTS = 8
 LBFGS_STEPS = 150
@@ -176,7 +180,7 @@ def _string(table: dict, name: str, key: str) -> str:
     if v is None:
         raise DataError(f"{key}.{name}", "missing")
     if not isinstance(v, str) or not v.strip():
-        raise DataError(f"{key}.{name}", f"must be a file name (string), got {v!r}")
+        raise DataError(f"{key}.{name}", f"must be a file name (string), got {show(v)}")
     return v
 
 
@@ -191,7 +195,7 @@ def read_record(table, i: int, base: pathlib.Path, key: str) -> Record:
     name = _string(table, "file", rkey)
     f = number(table, "frequency_hz", rkey, positive=True)
     fkey = f"{rkey}.file"
-    data = read_csv(pathlib.Path(base) / name, COLUMNS, fkey, min_rows=5)
+    data = read_csv(dataset_file(base, name, fkey), COLUMNS, fkey, min_rows=5)
     t, x, F = data["time_s"], data["displacement_m"], data["force_N"]
     fname = pathlib.Path(name).name
     dt = np.diff(t)
@@ -598,27 +602,42 @@ class TensileFit:
         return "\n".join(out)
 
     def scene_block(self) -> str:
-        """A ``[belt]`` fragment: EA and the viscous CA = DA / (2 pi f) at the scene frequency."""
+        """A ``[belt]`` fragment: EA and the viscous CA = DA / (2 pi f) at the scene frequency
+        (``scene_frequency_hz``, N and N s), saying which frequency that is, with a comment
+        table of EA and CA at 1, 10, 30, 100 and 300 Hz (CA falls about as 1/f, so a value for
+        10 Hz is ten times too large for a drive whose modes are near 100 Hz)."""
         f = self.scene_frequency_hz
         ea, ea_se = self.EA([f])
         da, _ = self.DA([f])
         ca = da[0] / (2 * math.pi * f)
         src = f" of {self.source}" if self.source else ""
+        lo, hi = self.tested_range_hz
+        fs = sorted(set(BLOCK_FREQUENCIES_HZ) | {f})
+        eas, _ = self.EA(fs)
+        cas = self.CA(fs)
+        ratio = float(self.CA([10.0])[0] / self.CA([100.0])[0])
+        rows = [f"#   {x:>8g} {e:>12.6g} {c:>10.4g}" + ("   <- below" if x == f else "")
+                + ("   (extrapolated: tested %g-%g Hz)" % (lo, hi) if x < lo * (1 - 1e-12) or x > hi * (1 + 1e-12)
+                   else "")
+                for x, e, c in zip(fs, eas, cas)]
         return "\n".join([
-            f"# tensile test{src}: power-sum complex modulus at f = {f:g} Hz, L = {self.length_mm:.4g} mm",
-            f"# CA is the viscous equivalent DA / (2 pi f) at {f:g} Hz (DA = {da[0]:.5g} N); "
-            "needs \"belt_damping\" in model.effects",
+            f"# tensile test{src}: power-sum complex modulus, L = {self.length_mm:.4g} mm",
+            f"# EA and CA below are for f = {f:g} Hz: [tensile] scene_frequency_hz of the dataset (default "
+            f"{SCENE_FREQUENCY_HZ:g} Hz);",
+            "# set it to the frequency of the drive's modes of interest.  CA = DA / (2 pi f) is the viscous",
+            f"# equivalent of the belt's damping at one frequency and falls steeply with it (here CA(10 Hz) / "
+            f"CA(100 Hz) = {ratio:.3g}):",
+            f"#   {'f [Hz]':>8} {'EA [N]':>12} {'CA [N s]':>10}",
+            *rows,
+            "# CA needs \"belt_damping\" in model.effects.",
             "[belt]",
-            f"EA = {ea[0]:.6g}    # N, +- {ea_se[0]:.2g} (1 sigma)",
-            f"CA = {ca:.6g}    # N s",
+            f"EA = {ea[0]:.6g}    # N at {f:g} Hz, +- {ea_se[0]:.2g} (1 sigma)",
+            f"CA = {ca:.6g}    # N s at {f:g} Hz (DA = {da[0]:.5g} N)",
         ])
 
     def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
         """tensile_modulus.png (|G| and phase vs f with data, model and band) and tensile_loss.png."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from beltjax.plotting import literal, save, subplots
 
         out = pathlib.Path(out)
         out.mkdir(parents=True, exist_ok=True)
@@ -636,14 +655,15 @@ class TensileFit:
         f = np.array([r.frequency_hz for r in self.records])
         Gd = np.array([r.G for r in self.records])
         sd = np.array([r.sigma for r in self.records])
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(6.5, 6), sharex=True)
+        fig, (a1, a2) = subplots(2, 1, figsize=(6.5, 6), sharex=True)
         a1.fill_between(grid, mag - z * s_mag, mag + z * s_mag, color="C0", alpha=0.25,
                         label=f"{100 * BAND_LEVEL:.0f} % band")
         a1.plot(grid, mag, color="C0", label="power-sum model")
         a1.errorbar(f, np.abs(Gd), yerr=z * sd, fmt="o", ms=4, color="k", capsize=2, label="records")
         a1.set_xscale("log")
         a1.set_ylabel("|G| [N/mm]")
-        a1.set_title(f"Tensile test{': ' + self.source if self.source else ''} (L = {self.length_mm:.4g} mm)",
+        a1.set_title(f"Tensile test{': ' + literal(self.source, 80) if self.source else ''} "
+                     f"(L = {self.length_mm:.4g} mm)",
                      fontsize=9)
         a1.legend(fontsize=8)
         a2.fill_between(grid, ph - z * s_ph, ph + z * s_ph, color="C1", alpha=0.25)
@@ -652,11 +672,9 @@ class TensileFit:
                     capsize=2)
         a2.set_ylabel("phase of G [deg]")
         a2.set_xlabel("frequency [Hz]")
-        fig.tight_layout()
         files = [out / "tensile_modulus.png"]
-        fig.savefig(files[-1], dpi=120)
-        plt.close(fig)
-        fig, ax = plt.subplots(figsize=(5.5, 3.5))
+        save(fig, files[-1], dpi=120)
+        fig, ax = subplots(figsize=(5.5, 3.5))
         h = np.asarray(self.loss_history)
         k = np.arange(len(h))
         ax.semilogy(k[:self.lbfgs_steps], h[:self.lbfgs_steps], label="optax L-BFGS")
@@ -665,10 +683,8 @@ class TensileFit:
         ax.set_ylabel("loss = chi^2 / 2")
         ax.set_title("Tensile power-sum fit: convergence", fontsize=9)
         ax.legend(fontsize=8)
-        fig.tight_layout()
         files.append(out / "tensile_loss.png")
-        fig.savefig(files[-1], dpi=120)
-        plt.close(fig)
+        save(fig, files[-1], dpi=120)
         return files
 
 

@@ -56,7 +56,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.data import DataError, number, read_csv
+from beltjax.tomltable import show
+from identification.data import DataError, dataset_file, number, read_csv
 
 __all__ = ["TorqueAngleFit", "fit_torque_angle", "branch_directions", "torque_model", "KEYS"]
 
@@ -279,15 +280,12 @@ class TorqueAngleFit:
     def plot(self, out: pathlib.Path) -> list[pathlib.Path]:
         """Write ``<key>.png`` in directory ``out``: the loop (data by branch, points left out,
         fitted branches and spring line) and the local half-widths against the angle."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from beltjax.plotting import literal, save, subplots
 
         out = pathlib.Path(out)
         out.mkdir(parents=True, exist_ok=True)
         th, T, d, u = self.angle_deg, self.torque_Nm, self.direction, self.used
-        fig, (ax, axb) = plt.subplots(2, 1, figsize=(7.5, 7), height_ratios=[3, 1.3], sharex=True)
+        fig, (ax, axb) = subplots(2, 1, figsize=(7.5, 7), height_ratios=[3, 1.3], sharex=True)
         ax.plot(th[u & (d < 0)], T[u & (d < 0)], ".", ms=3, color="C3", label="angle falling")
         ax.plot(th[u & (d > 0)], T[u & (d > 0)], ".", ms=3, color="C0", label="angle rising")
         if np.any(~u):
@@ -299,7 +297,7 @@ class TorqueAngleFit:
                 label=f"spring: k = {self.spring_stiffness_Nm_per_rad:.4g} N m/rad, "
                 f"theta_0 = {self.spring_preload_deg:.4g} deg")
         ax.set_ylabel("moment, spring's sense [N m]")
-        ax.set_title(f"torque-angle loop ({self.file})")
+        ax.set_title(f"torque-angle loop ({literal(self.file, 80)})")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
         loc = self.friction_band_local
@@ -311,10 +309,8 @@ class TorqueAngleFit:
         axb.set_ylabel("half-width [N m]")
         axb.legend(fontsize=8)
         axb.grid(alpha=0.3)
-        fig.tight_layout()
         path = out / f"{self.key.replace('.', '_')}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        save(fig, path, dpi=110)
         return [path]
 
     def scene_block(self) -> str:
@@ -340,7 +336,7 @@ class TorqueAngleFit:
 def _choice(section: dict, name: str, key: str, options: tuple[str, ...]) -> str:
     v = section.get(name, options[0])
     if v not in options:
-        raise DataError(f"{key}.{name}", f"must be one of {', '.join(map(repr, options))}, got {v!r}")
+        raise DataError(f"{key}.{name}", f"must be one of {', '.join(map(repr, options))}, got {show(v)}")
     return v
 
 
@@ -358,14 +354,14 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     fname = section.get("file")
     if not isinstance(fname, str) or not fname:
         raise DataError(f"{key}.file", "missing (a CSV file with columns angle_deg, torque_Nm)")
-    path = pathlib.Path(base) / fname
+    path = dataset_file(base, fname, f"{key}.file")
     torque_sign = _choice(section, "torque_sign", key, ("spring", "applied"))
     sense = _choice(section, "angle_sense", key, ("ccw", "cw"))
     friction = _choice(section, "friction", key, ("constant", "linear"))
     offset = number(section, "angle_offset_deg", key, default=0.0)
     dcol = section.get("direction_column")
     if dcol is not None and (not isinstance(dcol, str) or not dcol):
-        raise DataError(f"{key}.direction_column", f"must be a column name, got {dcol!r}")
+        raise DataError(f"{key}.direction_column", f"must be a column name, got {show(dcol)}")
     columns = ["angle_deg", "torque_Nm"] + ([dcol] if dcol else [])
     data = read_csv(path, columns, f"{key} ({fname})", min_rows=MIN_ROWS)
     s = 1.0 if sense == "ccw" else -1.0
@@ -381,7 +377,7 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     if dcol:
         raw = data[dcol]
         if not np.all(np.isin(raw, (-1.0, 0.0, 1.0))):
-            raise DataError(f"{key}.direction_column", f"column {dcol!r} must hold only -1, 0 or +1")
+            raise DataError(f"{key}.direction_column", f"column {show(dcol)} must hold only -1, 0 or +1")
         d = (s * raw).astype(int)
         used = d != 0
     else:

@@ -41,7 +41,7 @@ def synthetic():
             if "transverse" in lab and kind not in seen and len(seen) < 9:
                 seen.add(kind)
                 modes.append({"label": kind, "frequency_hz": float(f + rng.normal(0, 0.05))})
-        confs.append({"name": name, "scene": str(path), "modes": modes})
+        confs.append({"name": name, "scene": str(path.relative_to(REPO)), "modes": modes})  # inside base
     truth["belt.EI"] = TRUE_EI
     section = {"parameters": ["belt.EI", "belt.length"], "per_configuration": ["belt.length"],
                "frequency_std_hz": 0.05, "configuration": confs}
@@ -106,7 +106,13 @@ def test_not_identifiable_parameter_is_named(synthetic):
     (lambda s: s.update(parameters=["belt.EJ", "belt.length"]), "belt.EJ"),
     (lambda s: s.update(per_configuration=["belt.EA"]), "not among modal.parameters"),
     (lambda s: s.update(colour=1), "modal.colour: unknown key"),
-    (lambda s: s["configuration"][0].update(scene="nowhere.toml"), r"configuration\[0\].scene: file"),
+    (lambda s: s["configuration"][0].update(scene="nowhere.toml"), r"configuration\[0\].scene: nowhere.toml: scene file not found"),
+    (lambda s: s["configuration"][0].update(scene="/etc/passwd"), r"configuration\[0\].scene: '/etc/passwd' is an absolute path"),
+    (lambda s: s["configuration"].append(dict(s["configuration"][0])), r"configuration\[1\].name: configuration name 'T200' is also"),
+    (lambda s: s["configuration"].append({k: v for k, v in s["configuration"][0].items() if k != "name"}) or
+     s["configuration"].append({k: v for k, v in s["configuration"][0].items() if k != "name"}),
+     r"configuration\[2\].scene: configuration name 'two_pulley_T200' is also that of modal.configuration\[1\]"),
+    (lambda s: s.update(parameters=["belt.EI", "belt.static_tension", "belt.length"]), "lists both belt.length and"),
     (lambda s: s["configuration"][0]["modes"][0].update(label="1st wobble"), "is not '<n>th transverse"),
     (lambda s: s["configuration"][0]["modes"][0].update(label="40th transverse"), "no model mode labelled"),
     (lambda s: s["configuration"][0]["modes"][0].update(frequency_hz=300.0), "has no matching model mode"),
@@ -140,6 +146,21 @@ def test_bench_fit_to_measured_frequencies(tmp_path, capsys):
 
 
 TENSIONER = REPO / "identification" / "examples" / "tensioner_modal" / "dataset.toml"
+
+
+@pytest.mark.parametrize("dataset", [BENCH, TENSIONER], ids=["bench_modal", "tensioner_modal"])
+def test_example_scenes_are_copies_of_the_shipped_ones(dataset):
+    """A dataset names only files inside its own folder, so the modal examples hold copies of the
+    scenes they fit: byte for byte those of scenes/ (after a scene changes, run
+    identification/examples/make_bench_modal.py)."""
+    from identification.fit import load
+
+    confs = load(dataset)["modal"]["configuration"]
+    assert confs
+    for c in confs:
+        copy = dataset.parent / c["scene"]
+        assert copy.parent == dataset.parent and not copy.is_symlink()
+        assert copy.read_bytes() == (REPO / "scenes" / copy.name).read_bytes(), f"{copy} differs from scenes/"
 
 
 def test_tensioner_bench_fit_locates_the_arm(ref, tmp_path):

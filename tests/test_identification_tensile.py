@@ -240,7 +240,8 @@ def test_missing_column(good):
     (lambda s: s["record"][2].pop("frequency_hz"), "tensile.record[2].frequency_hz: missing"),
     (lambda s: s["record"][1].pop("file"), "tensile.record[1].file: missing"),
     (lambda s: s["record"][4].update(freq=1.0), "tensile.record[4].freq: unknown key"),
-    (lambda s: s["record"][0].update(file="nowhere.csv"), "tensile.record[0].file: file"),
+    (lambda s: s["record"][0].update(file="nowhere.csv"), "tensile.record[0].file: nowhere.csv: data file not found"),
+    (lambda s: s["record"][0].update(file="../x.csv"), "tensile.record[0].file: '../x.csv' leads out of the dataset's folder"),
     (lambda s: s.update(scene_frequency_hz="ten"), "tensile.scene_frequency_hz: must be a number"),
 ])
 def test_bad_keys(good, edit, key):

@@ -23,6 +23,7 @@ import dataclasses
 import os
 import pathlib
 import shutil
+import signal
 import subprocess
 import sys
 from typing import Callable
@@ -82,8 +83,53 @@ def dataset(d, text, **csv):
 
 
 def modal_dataset(d, scene_path, label="1st transverse", frequency=30.0):
+    """A modal dataset whose scene is a copy of ``scene_path`` in its folder (a dataset names only
+    files inside its own folder)."""
+    write(d / "data", "scene.toml", pathlib.Path(scene_path).read_text())
     return dataset(d, f'[modal]\nparameters = ["belt.EI"]\n\n[[modal.configuration]]\nname = "T200"\n'
-                      f'scene = "{scene_path}"\nmodes = [{{ label = "{label}", frequency_hz = {frequency} }}]\n')
+                      f'scene = "scene.toml"\nmodes = [{{ label = "{label}", frequency_hz = {frequency} }}]\n')
+
+
+MIB = 1 << 20
+PLANTED = "PLANTED-7f3a-CONTENT"  # a distinctive text in a file's contents: no error message may quote it
+
+
+def fifo(d: pathlib.Path, name: str) -> str:
+    """A named pipe (nothing ever writes to it: opening it for reading would block)."""
+    p = d / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    os.mkfifo(p)
+    return str(p)
+
+
+def sparse(d: pathlib.Path, name: str, size: int) -> str:
+    """A file of ``size`` bytes (zeros; sparse, so it costs no disk)."""
+    p = d / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with open(p, "wb") as f:
+        f.truncate(size)
+    return str(p)
+
+
+def link(d: pathlib.Path, name: str, target: pathlib.Path) -> str:
+    p = d / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.symlink_to(target)
+    return str(p)
+
+
+def torque_angle_named(d, file_name, **csv):
+    """The torque-angle dataset naming ``file_name`` for its CSV; the real CSV (with a planted text)
+    is written next to the data folder, outside it."""
+    write(d, "torque_angle.csv", TORQUE_ANGLE_CSV + f"# {PLANTED}\n")
+    return dataset(d, edit(TORQUE_ANGLE, ('"torque_angle.csv"', f'"{file_name}"')), **csv)
+
+
+def two_configurations(d, second_name="T200", parameters='["belt.EI"]'):
+    """A modal dataset of two configurations (same scene) with the given second name."""
+    write(d / "data", "scene.toml", T200)
+    conf = '[[modal.configuration]]\nname = "{}"\nscene = "scene.toml"\nmodes = [{{ label = "1st transverse", frequency_hz = 30.0 }}]\n'
+    return dataset(d, f"[modal]\nparameters = {parameters}\n\n" + conf.format("T200") + conf.format(second_name))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,8 +221,29 @@ CASES = [
     case("scene-negative-spring", "`statics`: `spring_stiffness = -21.14`", "negative stiffness",
          lambda d: ["statics", bench(d, ("spring_stiffness = 21.14", "spring_stiffness = -21.14"))],
          "tensioner.spring_stiffness: must be > 0"),
+    case("scene-EI-1e20", "`statics`: `EI = 1e20`", "a magnitude float64 cannot carry through the element matrices",
+         lambda d: ["statics", scene(d, ("EI = 0.034", "EI = 1e20"))],
+         "belt.EI: must lie in [0, 100000] N m^2 (", "got 1e+20"),
+    case("scene-rhoA-1e-300", "`statics`: `rhoA = 1e-300`", "a mass no belt has",
+         lambda d: ["statics", scene(d, ("rhoA = 0.12101", "rhoA = 1e-300"))],
+         "belt.rhoA: must lie in [1e-06, 1000] kg/m (", "got 1e-300"),
+    case("scene-centre-1e200", "`statics`: `center = [1e200, 0.135]`", "a centre far from the drive",
+         lambda d: ["statics", scene(d, ("center = [0.2232, 0.135]", "center = [1e200, 0.135]"))],
+         "pulley[1].center: must lie in [-100000, 100000] m (", "round-off of the tangent geometry"),
+    case("scene-pinched-span", "`statics`: an idler 0.1 mm from the crank (its span 1e-4 m beside 0.67 m ones)",
+         "a span float64 cannot carry beside the others",
+         lambda d: ["statics", scene(d, ('order = ["crank", "alternator"]', 'order = ["crank", "idler", "alternator"]'),
+                                     ("back_side = []", 'back_side = ["idler"]'),
+                                     ("[route]", '[[pulley]]\nname = "idler"\n'
+                                                 'center = [0.7834179830112434, 0.13424936345119864]\n'
+                                                 'radius = 0.03\nmass = 0.3\ninertia = 0.2e-3\n\n[route]'))],
+         "pulley[2].center: span crank-idler is 0.0001 m long", "float64"),
     case("out-is-a-file", "`statics scene.toml --out taken` (`taken` is a file)", "output directory is a file",
          lambda d: ["statics", T2, "--out", write(d, "taken", "x")], "--out: cannot create directory"),
+    case("out-below-a-file", "`statics scene.toml --out taken/sub` (`taken` is a file)",
+         "output directory below a file",
+         lambda d: ["statics", T2, "--out", str(pathlib.Path(write(d, "taken", "x")) / "sub")],
+         "--out: cannot create directory", "taken' is a file"),
     # ---------------------------------------------------------------- modal
     case("modal-huge-mesh", "`modal`: `elements_per_span = 1000000`", "mesh that cannot fit in memory",
          lambda d: ["modal", scene(d, ("elements_per_span = 16", "elements_per_span = 1000000"))],
@@ -225,9 +292,41 @@ CASES = [
          "string for an angle",
          lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[initial]\nrotation_deg = { alternator = "5 deg" }\n'),
                     "--t-end", "0.1"], "initial.rotation_deg.alternator"),
+    case("simulate-forcing-above-step-nyquist", "`simulate --dt 2e-4`: a 4990 Hz `[[torque]]`",
+         "forcing the step would alias (to 10 Hz)",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[[torque]]\npulley = "alternator"\namplitude_Nm = 5.0\n'
+                                      'frequency_hz = 4990.0\n'), "--t-end", "0.1", "--dt", "2e-4"],
+         "torque[0].frequency_hz: the torque on alternator at 4990 Hz is at or above the Nyquist frequency 2500 Hz of "
+         "the time step dt = 0.0002 s", "false 10 Hz excitation"),
+    case("simulate-forcing-above-output-nyquist", "`simulate --output-dt 1e-3`: a 600 Hz `[[span_load]]`",
+         "forcing the outputs would alias",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[[span_load]]\nspan = "crank-alternator"\nnode = 8\n'
+                                      'amplitude_N = 1.0\nfrequency_hz = 600.0\n'), "--t-end", "0.1",
+                    "--output-dt", "1e-3"],
+         "span_load[0].frequency_hz", "Nyquist frequency 500 Hz of the output interval", "below 0.0008333 s"),
+    case("simulate-unbalance-above-output-nyquist", "`simulate`: the fluctuation scene at `speed_rpm = 30000`",
+         "an unbalanced pulley turning faster than the outputs resolve",
+         lambda d: ["simulate", write(d, "scene.toml", edit((SCENES / "sim_two_pulley_fluctuation.toml").read_text(),
+                                                            ("speed_rpm = 600.0", "speed_rpm = 30000.0"))),
+                    "--t-end", "0.1"], "pulley[0].cm_offset: the unbalance of crank"),
+    case("simulate-load-window-shorter-than-step", "`simulate --dt 2e-4`: a torque acting for 1e-4 s",
+         "a pulse the step can miss",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 5.0\n'
+                                      't_start_s = 0.01\nt_end_s = 0.0101\n'), "--t-end", "0.1", "--dt", "2e-4"],
+         "torque[0].t_end_s", "less than 2 time steps"),
+    case("simulate-output-dt-below-dt", "`simulate --dt 1e-4 --output-dt 5e-5`", "outputs between the steps",
+         lambda d: ["simulate", T2, "--t-end", "0.1", "--dt", "1e-4", "--output-dt", "5e-5"],
+         "output_dt: 5e-05 s is below the time step dt = 0.0001 s"),
+    case("simulate-too-many-steps", "`simulate --t-end 3000 --output-dt 0.01`", "more steps than the limit",
+         lambda d: ["simulate", T2, "--t-end", "3000", "--output-dt", "0.01"],
+         "t_end: 3000 s needs 30000000 steps of dt = 0.0001 s, more than the limit of 20000000"),
     # ---------------------------------------------------------------- span
     case("span-too-many-elements", "`span ... --elements 10000`", "mesh too fine",
          lambda d: [*SPAN, "--elements", "10000"], "--elements must be at most 400"),
+    case("span-length-1e-300", "`span --length 1e-300 ...`", "a span no mesh can carry",
+         lambda d: [*SPAN[:2], "1e-300", *SPAN[3:]], "--length: must lie in [0.0001, 10000] m ("),
+    case("span-speed-nan", "`span ... --speed nan`", "NaN speed (it raised a raw LinAlgError)",
+         lambda d: [*SPAN, "--speed", "nan"], "--speed: must be finite, got nan"),
     case("span-unknown-bending", "`span ... --bending quadratic`", "unknown choice",
          lambda d: [*SPAN, "--bending", "quadratic"], "argument --bending: invalid choice"),
     case("unknown-command", "`simulat scene.toml`", "misspelt command", lambda d: ["simulat", T2],
@@ -238,7 +337,7 @@ CASES = [
     case("fit-directory", "`fit` on a directory", "a directory, not a file", lambda d: ["fit", str(d)],
          "is a directory, not a dataset file"),
     case("fit-malformed-toml", "`fit`: `[torque_angle` (unclosed)", "malformed TOML",
-         lambda d: ["fit", dataset(d, '[torque_angle\nfile = "torque_angle.csv"\n')], "not valid TOML"),
+         lambda d: ["fit", dataset(d, '[torque_angle\nfile = "torque_angle.csv"\n')], "malformed TOML"),
     case("fit-empty-dataset", "`fit` on an empty dataset.toml", "nothing to fit",
          lambda d: ["fit", dataset(d, "")], "no section to fit"),
     case("fit-unknown-section", "`fit`: `[tensil]`", "misspelt section",
@@ -308,6 +407,13 @@ CASES = [
          "parameter the scene lacks",
          lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('"belt.EI"', '"tensioner.arm_length"')))],
          "grid[1].parameter: tensioner.arm_length: the scene has no tensioner"),
+    case("sweep-speed-of-a-driven-pulley", "`sweep`: `parameter = \"pulley.alternator.speed_rpm\"`",
+         "the speed of a pulley that is not the drive pulley (it changed nothing)",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('"belt.EI"', '"pulley.alternator.speed_rpm"')))],
+         "grid[1].parameter: pulley.alternator.speed_rpm: only the drive pulley takes a speed"),
+    case("sweep-EI-1e20", "`sweep`: `belt.EI` from 0.02 to 1e20", "a value no case could use",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ("stop = 0.05", "stop = 1e20")))],
+         "grid[1].start: belt.EI must lie in [0, 100000] N m^2"),
     case("sweep-campbell-without-rpm", "`sweep`: `outputs = [\"campbell\"]`, no `rpm`", "missing key",
          lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('["statics", "modal"]', '["campbell"]')))],
          "rpm: missing"),
@@ -334,6 +440,10 @@ CASES = [
     case("optimize-start-outside", "`optimize`: `lower = 0.66` (the scene has 0.64335)", "start outside the bounds",
          lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("lower = 0.58", "lower = 0.66")))],
          "variable[0].parameter", "lies outside [lower, upper]"),
+    case("optimize-bound-outside-range", "`optimize`: `lower = -1e200` for tensioner.pivot.x",
+         "a bound outside the parameter's accepted range",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("lower = 0.58", "lower = -1e200")))],
+         "variable[0].lower: tensioner.pivot.x must lie in [-100000, 100000] m"),
     case("optimize-unknown-parameter", "`optimize`: `parameter = \"tensioner.pivot.z\"`", "no such parameter",
          lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("tensioner.pivot.x", "tensioner.pivot.z")))],
          "variable[0].parameter: tensioner.pivot.z"),
@@ -359,6 +469,102 @@ CASES = [
          lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("margin_hz = 2.0", "margin_hz = 2.0\n"
                                                                                            "tolerance_hz = -0.1")))],
          "objective[0].tolerance_hz: must be >= 0"),
+    # ---------------------------------------------------------------- input files: regular, bounded, UTF-8
+    case("scene-named-pipe", "`statics pipe.toml` (a named pipe)", "not a regular file (reading would block)",
+         lambda d: ["statics", fifo(d, "pipe.toml")], "pipe.toml: is a named pipe, not a regular file"),
+    case("sweep-named-pipe", "`sweep scene.toml pipe.toml` (a named pipe)", "not a regular file",
+         lambda d: ["sweep", T2, fifo(d, "pipe.toml")], "pipe.toml: is a named pipe"),
+    case("optimize-named-pipe", "`optimize scene.toml pipe.toml` (a named pipe)", "not a regular file",
+         lambda d: ["optimize", TB, fifo(d, "pipe.toml")], "pipe.toml: is a named pipe"),
+    case("fit-named-pipe", "`fit pipe.toml` (a named pipe)", "not a regular file",
+         lambda d: ["fit", fifo(d, "pipe.toml")], "pipe.toml: is a named pipe"),
+    case("fit-csv-named-pipe", "`fit`: torque_angle.csv is a named pipe", "data file not a regular file",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE), fifo(d / "data", "torque_angle.csv")][:2],
+         "torque_angle", "torque_angle.csv: is a named pipe"),
+    case("scene-dev-zero", "`statics /dev/zero`", "a device (endless)", lambda d: ["statics", "/dev/zero"],
+         "/dev/zero: is a device, not a regular file"),
+    case("fit-dev-zero", "`fit /dev/zero`", "a device (endless)", lambda d: ["fit", "/dev/zero"],
+         "/dev/zero: is a device"),
+    case("scene-too-large", "`statics` on a 9 MiB scene file", "over the size limit (8 MiB)",
+         lambda d: ["statics", sparse(d, "big.toml", 9 * MIB)], "big.toml: 9.0 MiB, more than the limit of 8.0 MiB"),
+    case("fit-csv-too-large", "`fit`: a 65 MiB torque_angle.csv", "data file over the size limit (64 MiB)",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE), sparse(d / "data", "torque_angle.csv", 65 * MIB)][:2],
+         "torque_angle.csv: 65.0 MiB, more than the limit of 64.0 MiB"),
+    case("scene-bom-then-nan", "`statics`: a scene with a UTF-8 byte-order mark and `EI = nan`",
+         "the mark is accepted: the error is the NaN",
+         lambda d: ["statics", write(d, "scene.toml", b"\xef\xbb\xbf" + edit(T200, ("EI = 0.034", "EI = nan")).encode())],
+         "belt.EI: must be finite"),
+    case("fit-csv-bom-then-nan", "`fit`: torque_angle.csv with a byte-order mark and `nan` on line 4",
+         "the mark is accepted: the error is the NaN",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv=b"\xef\xbb\xbf" + edit(
+             TORQUE_ANGLE_CSV, ("75.1026,5.9668", "75.1026,nan")).encode())],
+         "torque_angle.csv line 4: NaN or infinite value"),
+    case("fit-csv-not-utf8", "`fit`: torque_angle.csv of binary bytes", "not a text file",
+         lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv=b"angle_deg,torque_Nm\n\xff\xfe" + PLANTED.encode())],
+         "torque_angle.csv: not a UTF-8 text file", "line 2, column 1"),
+    # ---------------------------------------------------------------- datasets name files inside their folder
+    case("fit-csv-parent", "`fit`: `file = \"../torque_angle.csv\"`", "a file outside the dataset's folder",
+         lambda d: ["fit", torque_angle_named(d, "../torque_angle.csv")],
+         "torque_angle.file: '../torque_angle.csv' leads out of the dataset's folder"),
+    case("fit-csv-absolute", "`fit`: `file = \"/etc/passwd\"`", "an absolute path",
+         lambda d: ["fit", torque_angle_named(d, "/etc/passwd")], "torque_angle.file: '/etc/passwd' is an absolute path"),
+    case("fit-csv-link-out", "`fit`: torque_angle.csv a link to ../torque_angle.csv", "a link out of the folder",
+         lambda d: ["fit", torque_angle_named(d, "torque_angle.csv"),
+                    link(d / "data", "torque_angle.csv", d / "torque_angle.csv")][:2],
+         "torque_angle.file: 'torque_angle.csv' is a link to a file outside the dataset's folder"),
+    case("fit-modal-scene-parent", "`fit`: modal `scene = \"../scene.toml\"`", "a scene outside the folder",
+         lambda d: ["fit", write(d, "scene.toml", T200) and dataset(
+             d, '[modal]\nparameters = ["belt.EI"]\n[[modal.configuration]]\nscene = "../scene.toml"\n'
+                'modes = [{ label = "1st transverse", frequency_hz = 30.0 }]\n')],
+         "modal.configuration[0].scene: '../scene.toml' leads out of the dataset's folder"),
+    # ---------------------------------------------------------------- values no key can carry
+    case("scene-400-digit-integer", "`statics`: `EI = 99...9` (400 digits)", "integer beyond 64 bits",
+         lambda d: ["statics", scene(d, ("EI = 0.034", "EI = " + "9" * 400))],
+         "belt.EI: an integer of 400 digits"),
+    case("optimize-400-digit-integer", "`optimize`: `steps = 10^400`", "integer beyond 64 bits",
+         lambda d: ["optimize", TB, write(d, "opt.toml", edit(OPTIMIZE, ("steps = 150", "steps = 1" + "0" * 400)))],
+         "steps: an integer of 401 digits"),
+    case("scene-5000-digit-number", "`statics`: `EI = 99...9` (5000 digits)", "a number Python cannot read",
+         lambda d: ["statics", scene(d, ("EI = 0.034", "EI = " + "9" * 5000))],
+         "belt.EI: a value written with 5000 characters"),
+    case("scene-deep-array", "`statics`: `EI = [[[...]]]` nested 100000 deep", "nesting no parser recursion takes",
+         lambda d: ["statics", scene(d, ("EI = 0.034", "EI = " + "[" * 100000 + "]" * 100000))],
+         "belt.EI: arrays or inline tables nested more than 20 deep"),
+    case("fit-deep-inline-table", "`fit`: `angle_offset_deg = {a={a=...}}` nested 100000 deep", "deep nesting",
+         lambda d: ["fit", dataset(d, edit(TORQUE_ANGLE, ("[torque_angle]", "[torque_angle]\nangle_offset_deg = "
+                                                          + "{a=" * 100000 + "1" + "}" * 100000)),
+                                   torque_angle_csv=TORQUE_ANGLE_CSV)],
+         "torque_angle.angle_offset_deg: arrays or inline tables nested more than 20 deep"),
+    case("sweep-deep-tables", "`sweep`: `[x.a. ... .a]` 15 deep, `b.b. ... .b = 1` 10 more", "tables nested too deep",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", SWEEP + "\n[grid_x" + ".a" * 14 + "]\nb" + ".b" * 9 + " = 1\n")],
+         "grid_x.a.a.a", "nested more than 20 deep"),
+    case("scene-dotted-key", "`statics`: `a.a.a. ... .a = 1` (100000 parts)", "a key tomllib reads in quadratic time",
+         lambda d: ["statics", write(d, "scene.toml", "a" + ".a" * 100000 + " = 1\n" + T200)],
+         "a.a.a.a", "a dotted key of more than 20 parts (line 1)"),
+    case("sweep-megabyte-description", "`sweep`: a description of 2 MB", "string over its limit (10000 characters)",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('description = "', 'description = "' + "x" * 2_000_000)))],
+         "description: a string of 2000", "longer than the limit of 10000"),
+    case("scene-long-name", "`statics`: a pulley name of 1000 characters", "name over its limit (100 characters)",
+         lambda d: ["statics", scene(d, ('name = "crank"', 'name = "' + "c" * 1000 + '"'))],
+         "pulley[0].name: a string of 1000 characters, longer than the limit of 100"),
+    case("sweep-huge-array", "`sweep`: `values` with 200000 elements", "array over its limit (100000)",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ("[200, 300, 400, 500, 600]",
+                                                                     "[" + "200," * 200000 + "]")))],
+         "grid[0].values: an array of 200000 elements"),
+    # ---------------------------------------------------------------- two things with one name
+    case("fit-modal-duplicate-name", "`fit`: two modal configurations named `T200`",
+         "one fitted belt length would overwrite the other",
+         lambda d: ["fit", two_configurations(d)],
+         "modal.configuration[1].name: configuration name 'T200' is also that of modal.configuration[0]"),
+    case("fit-impulse-duplicate-name", "`fit`: two impulse records named `tensioner arm`",
+         "one record's plot would overwrite the other's",
+         lambda d: ["fit", dataset(d, IMPULSE + IMPULSE[IMPULSE.index("[[impulse.record]]"):],
+                                   tensioner_arm_csv=IMPULSE_CSV)],
+         "impulse.record[1].name: record name 'tensioner arm' is taken by impulse.record[0]"),
+    case("fit-modal-length-and-tension", "`fit`: modal `parameters = [\"belt.length\", \"belt.static_tension\"]`",
+         "setting one belt key overwrites the other",
+         lambda d: ["fit", two_configurations(d, "T200b", '["belt.length", "belt.static_tension"]')],
+         "modal.parameters: lists both belt.length and belt.static_tension"),
 ]
 
 
@@ -369,7 +575,7 @@ def _run(c: Case, tmp_path: pathlib.Path, capsys) -> tuple[int, str, pathlib.Pat
     if "--out" not in argv:
         argv = [*argv, "--out", str(out)]
     if c.how == "main":
-        code = main(argv)
+        code = _with_timeout(lambda: main(argv), ROW_TIMEOUT_S)
         return code, capsys.readouterr().err, out
     env = {k: v for k, v in os.environ.items() if k != "BELTJAX_DEBUG"}
     if c.how == "script":
@@ -379,6 +585,26 @@ def _run(c: Case, tmp_path: pathlib.Path, capsys) -> tuple[int, str, pathlib.Pat
         cmd = [sys.executable, "-m", "beltjax.cli", *argv]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env, cwd=tmp_path)
     return proc.returncode, proc.stderr, out
+
+
+ROW_TIMEOUT_S = 120  # an in-process row that blocks (a named pipe opened for reading) fails, never hangs
+
+
+def _with_timeout(fn, seconds):
+    """``fn()``, failed by an alarm after ``seconds`` (where the platform has SIGALRM)."""
+    if not hasattr(signal, "SIGALRM"):
+        return fn()
+
+    def alarm(*_):
+        raise TimeoutError(f"no answer after {seconds} s (blocked?)")
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    signal.alarm(seconds)
+    try:
+        return fn()
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
 
 
 @pytest.fixture(autouse=True)
@@ -411,3 +637,45 @@ def test_the_table_is_broad_and_fast(tmp_path):
     assert {"statics", "modal", "campbell", "simulate", "span", "fit", "sweep", "optimize"} <= first
     assert sum(c.compiles for c in CASES) <= MAX_COMPILING
     assert {c.how for c in CASES} == {"main", "script", "module"}
+
+
+# Files whose contents hold PLANTED where an error is found: the message names the file, key, line
+# and column, never the text.
+PLANTED_FILES = [
+    ("scene-malformed-line", lambda d: ["statics", scene(d, ("EA = 111190.0", f"EA = 111190.0 {PLANTED}"))]),
+    ("scene-illegal-character", lambda d: ["statics", scene(d, ("EA = 111190.0", f'EA = "{PLANTED}\x01"'))]),
+    ("scene-not-utf8", lambda d: ["statics", write(d, "s.toml", f"# {PLANTED}\n".encode() + b"\xff" + PLANTED.encode())]),
+    ("scene-inline-duplicate", lambda d: ["statics", scene(d, ("EA = 111190.0", f"EA = {{ {PLANTED} = 1, {PLANTED} = 2 }}"))]),
+    ("sweep-malformed", lambda d: ["sweep", T2, write(d, "sweep.toml", f"[grid\n{PLANTED}\n")]),
+    ("fit-csv-header", lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv=edit(
+        TORQUE_ANGLE_CSV, ("torque_Nm", PLANTED)))]),
+    ("fit-csv-cell", lambda d: ["fit", dataset(d, TORQUE_ANGLE, torque_angle_csv=edit(
+        TORQUE_ANGLE_CSV, ("75.1026,5.9668", f"75.1026,5.9668 {PLANTED}")))]),
+    ("fit-csv-is-a-scene", lambda d: ["fit", write(d / "data", "scene.toml", f'description = "{PLANTED}"\n' + T200)
+                                      and dataset(d, edit(TORQUE_ANGLE, ("torque_angle.csv", "scene.toml")))]),
+    ("fit-csv-outside", lambda d: ["fit", torque_angle_named(d, "../torque_angle.csv")]),
+    ("fit-modal-scene-malformed", lambda d: ["fit", write(d / "data", "scene.toml", f"[belt\n{PLANTED}\n") and dataset(
+        d, '[modal]\nparameters = ["belt.EI"]\n[[modal.configuration]]\nscene = "scene.toml"\n'
+           'modes = [{ label = "1st transverse", frequency_hz = 30.0 }]\n')]),
+]
+
+
+@pytest.mark.parametrize("argv", [a for _, a in PLANTED_FILES], ids=[i for i, _ in PLANTED_FILES])
+def test_no_message_quotes_a_file(argv, tmp_path, capsys):
+    c = Case("planted", "", "", argv, ())
+    code, err, _ = _run(c, tmp_path, capsys)
+    assert code == 2 and err.count("\n") == 1 and err.startswith(PREFIX), err
+    assert PLANTED not in err and "PLANTED" not in err, err
+
+
+def test_byte_order_mark_is_accepted(tmp_path):
+    """A scene and a CSV file with a UTF-8 byte-order mark read exactly as without it."""
+    from beltjax.scene import load_scene
+    from identification.data import read_csv
+
+    plain, marked = write(tmp_path, "plain.toml", T200), write(tmp_path, "bom.toml", b"\xef\xbb\xbf" + T200.encode())
+    assert repr(load_scene(marked)).replace(marked, "") == repr(load_scene(plain)).replace(plain, "")
+    cols = ["angle_deg", "torque_Nm"]
+    a = read_csv(pathlib.Path(write(tmp_path, "a.csv", TORQUE_ANGLE_CSV)), cols, "k")
+    b = read_csv(pathlib.Path(write(tmp_path, "b.csv", b"\xef\xbb\xbf" + TORQUE_ANGLE_CSV.encode())), cols, "k")
+    assert all((a[k] == b[k]).all() and a[k].size > 10 for k in cols)

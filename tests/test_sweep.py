@@ -83,8 +83,31 @@ def test_vmapped_batch_equals_cases_one_by_one(scene, grid):
         assert res["belt_length_m"][i] == pytest.approx(st.belt_length_m, rel=1e-12)
         assert res["installation_tension_N"][i] == pytest.approx(values["belt.static_tension"][i], rel=1e-12)
         assert res["frequencies_hz"][i, 0] == 0.0  # the free drive's rigid-body mode
-        np.testing.assert_allclose(res["frequencies_hz"][i, 1:], m.frequencies_hz[1:MODES], rtol=1e-9)
+        # column k holds the nominal's k-th mode: the case's own mode of that kind and order (labelled
+        # by its own modal analysis), whatever its rank in the case
+        for k, lab in enumerate(res["mode_labels"][1:], start=1):
+            same = [f for f, own in zip(m.frequencies_hz, m.labels) if own.split()[:2] == lab.split()[:2]]
+            assert np.min(np.abs(np.asarray(same) - res["frequencies_hz"][i, k])) <= 1e-9 * same[0], (i, lab)
+        np.testing.assert_allclose(np.sort(res["frequencies_hz"][i]), m.frequencies_hz[:MODES], rtol=1e-9)
         assert res["stable"][i] and res["converged"][i]
+
+
+def test_frequency_columns_keep_their_mode_across_the_grid(grid):
+    """The rotational mode (~96.5 Hz) stays in one column while the transverse modes rise through
+    it with the tension (sorted, it moved from the 8th place at 200 N to the 6th at 350 N)."""
+    _, res = grid
+    F, labels = res["frequencies_hz"], res["mode_labels"]
+    rot = [k for k, lab in enumerate(labels) if lab.startswith("1st rotational")]
+    assert len(rot) == 1 and rot[0] == 7
+    np.testing.assert_allclose(F[:, rot[0]], 96.5, rtol=0.005)
+    rank = np.argsort(np.argsort(F, axis=1), axis=1)[:, rot[0]]
+    assert rank[0] == 7 and rank[-1] < 7  # its rank changes across the cases, its column does not
+    assert np.all(res["mode_mac"] > 0.99)
+    trans = [k for k, lab in enumerate(labels) if lab.startswith("1st transverse")]
+    assert len(trans) == 2
+    np.testing.assert_allclose(F[:, trans[0]] / F[0, trans[0]], np.sqrt(res["installation_tension_N"] / 200), rtol=0.01)
+    cols = sweep.columns(load_scene(T200), res)
+    assert np.all(cols["mode_match"] > 0.99)
 
 
 def test_frequencies_follow_the_tension(grid):

@@ -94,8 +94,9 @@ at 9 speeds), each speed keeps its own Newton loop, and with ``vmap`` the gradie
 batched loop hung XLA's CPU runtime before beltjax pinned its CPU thread pool at import.  The
 same compiled function gives the before/after Campbell diagrams (its speeds are an argument).
 A step to a layout that cannot be built or run (the belt cannot be fitted, no equilibrium,
-unstable, a span force tension - rhoA c^2 lam at or below zero: past the critical speed, a
-non-finite loss or gradient) is rejected and the learning rate halved.
+unstable, a span force on the pulleys at or below zero: past the critical speed,
+:func:`beltjax.critical.span_forces`, a non-finite loss or gradient) is rejected and the
+learning rate halved.
 
 Stopping, starts and the result (:mod:`~beltjax.optimize.stop`, :mod:`~beltjax.optimize.solver`,
 :mod:`~beltjax.optimize.goal`): a start ends when its smoothed loss has stalled (an early dip

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import json
 import pathlib
-import sys
 import time
 
+from beltjax import textfile
 from beltjax.scene import Scene
 from beltjax.optimize.plots import _plot_campbell_band, plot_history
 from beltjax.optimize.problem import load
@@ -71,19 +71,23 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     """
     from beltjax.plotting import plot_layout
 
+    from beltjax import outputs
+    from beltjax.progress import Reporter, message
+
     t0 = time.perf_counter()
     out = pathlib.Path(out)
     problem = load(spec_path, scene)
-    every = max(1, problem.steps // 15)
+    reporter = Reporter()  # on stderr: redrawn on a terminal, a line every few seconds elsewhere
 
     def progress(d):
-        if d["step"] % every == 0 or d["step"] == d["steps"]:
-            start = f"start {d['start']}/{d['starts']} " if d["starts"] > 1 else ""
-            print(f"optimize: {start}step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  result {d['best']:.5g}  "
-                  f"learning rate {d['learning_rate']:.3g}  rejected {d['rejected']}", file=sys.stderr, flush=True)
+        start = f"start {d['start']}/{d['starts']} " if d["starts"] > 1 else ""
+        reporter.update(f"optimize: {start}step {d['step']}/{d['steps']}  loss {d['loss']:.5g}  result {d['best']:.5g}  "
+                        f"learning rate {d['learning_rate']:.3g}  rejected {d['rejected']}",
+                        final=d["step"] == d["steps"])
 
     res = optimise(scene, problem, progress)
-    print("optimize: checking the start and the result on the scene's mesh", file=sys.stderr, flush=True)
+    reporter.finish()
+    message("optimize: checking the start and the result on the scene's mesh")
     t_check = time.perf_counter()
     n_plot = relevant_modes(problem, res.measures0["freqs_hz"], res.measures["freqs_hz"])
     before = check(scene, problem, evaluator(scene, problem, res.x0, res), n_plot)
@@ -97,7 +101,7 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     if src.is_file():
         head = (f"# optimised by beltjax optimize ({spec_path}): "
                 + ", ".join(f"{p} {a:.6g} -> {b:.6g}" for p, a, b in zip(res.paths, res.x0, res.x)) + "\n")
-        text = head + edit_scene_text(src.read_text(), scene, changes)
+        text = head + edit_scene_text(textfile.read_text(src, "scene"), scene, changes)  # no byte-order mark
         _verify_scene_text(text, scene, changes)
         (out / "optimized_scene.toml").write_text(text)
         files.append("optimized_scene.toml")
@@ -161,9 +165,9 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
         print(f"GOAL NOT MET (exit status {GOAL_NOT_MET}):")
         for u in missing:
             print(f"  {u['text']}")
-    print(f"wrote {', '.join(str(out / f) for f in ['optimize.json'] + files)}")
+    outputs.wrote([out / f for f in ["optimize.json"] + files])
     if missing:
-        print(f"optimize: goal not met: {missing[0]['text']}" + (f" (and {len(missing) - 1} more)" if len(missing) > 1
-                                                                 else ""), file=sys.stderr, flush=True)
+        more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+        message(f"optimize: goal not met: {missing[0]['text']}{more}")
         return GOAL_NOT_MET
     return 0

@@ -5,9 +5,9 @@ converged and stable, no span past its critical speed, no two pulleys overlappin
 constraint within its tolerance and every resonance band clear of its order lines with its
 margin.  The hub-load objective has no target: it is minimised, never "unmet".
 
-The span force check (tension - rhoA c^2 lam > 0 at the scene's speed and every sampled speed,
-from the statics in :func:`beltjax.optimize.loss.measures`) stands in for the critical-speed
-check of issue 20, item 1, until that check is exported by beltjax.
+The critical-speed check is :func:`beltjax.critical.span_forces` (each span's force on the
+pulleys, tension - rhoA c^2 lam, > 0) at the scene's speed and every sampled speed, in
+:func:`beltjax.optimize.loss.measures`: a step past it is rejected like an unstable one.
 """
 
 from __future__ import annotations

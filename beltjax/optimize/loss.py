@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, parameters, statics
+from beltjax import critical, drive, drive_modal, parameters, statics
 from beltjax.scene import Scene
 from beltjax.optimize import modes
 from beltjax.optimize.problem import _UNIT, SOFT_HZ, Constraint, Problem, _band_starts, _bands, _pairs, sample_rpm
@@ -33,10 +33,10 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     rim-to-rim distances of every two route entries; at each speed of ``rpm``: qi_speeds (S,
     n_i), freqs_hz (S, n_i) sorted, span_weights (S, n_i) (each sorted mode's weight as a span
     mode there, :mod:`beltjax.optimize.modes`; 1 when no objective watches "span"), good (S,)
-    (equilibrium converged and stable); span_force_N (S + 1, n): the span force on the pulleys,
-    tension - rhoA c^2 lam (c the transport speed, lam the stretch), at the scene's own speed
-    and each speed of ``rpm``; feasible: belt fitted, every equilibrium converged and stable,
-    every span force positive (no span past its critical speed), everything finite.
+    (equilibrium converged and stable); span_force_N (S + 1, n): each span's force on the
+    pulleys, tension - rhoA c^2 lam (:func:`beltjax.critical.span_forces`), at the scene's own
+    speed and each speed of ``rpm``; feasible: belt fitted, every equilibrium converged and
+    stable, every span force positive (no span past its critical speed), everything finite.
     """
     rpm = jnp.asarray(sample_rpm(problem) if rpm is None else rpm, dtype=jnp.float64)
     sc = parameters.set_values(scene, dict(zip(problem.paths, x)))
@@ -48,10 +48,7 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
 
     def at(v):
         qv, _, iv = statics.equilibrium(sc, inst, speed=v)
-        # the span force on the pulleys (as in beltjax.drive.hub_forces: the tension less the
-        # momentum flux); at or below zero the span is at or past its critical speed
-        tension = drive.span_tensions(drive.full_coordinates(qv, sc, inst), sc, inst)
-        force = tension - sc.belt.rhoA * drive.transport_speed(sc, inst, v) ** 2 * inst.stretch
+        force = critical.span_forces(sc, qv, inst, v)  # <= 0: at or past the critical speed
         if rpm.shape[0] == 0:
             return qv, jnp.zeros(0), jnp.zeros(0), iv[0] > 0.5, force
         M, G, K = drive_modal.linearise(qv, sc, inst, v)

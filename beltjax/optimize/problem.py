@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 
 import numpy as np
 
-from beltjax import drive, parameters, tomltable
+from beltjax import drive, parameters, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.scene import MAX_ELEMENTS_PER_SPAN, Scene
 from beltjax.tomltable import describe
@@ -133,6 +132,11 @@ def _parse_variable(d, i: int, scene: Scene) -> Variable:
         raise OptimizeError(str(exc), f"{key}.parameter") from None
     lo = t.number("lower", required=True)
     hi = t.number("upper", required=True)
+    for k, x in (("lower", lo), ("upper", hi)):
+        try:  # a bound outside the parameter's accepted range (beltjax.schema)
+            parameters.check_value(path, x)
+        except parameters.ParameterError as exc:
+            t.fail(k, f"{path} {str(exc)[len(path) + 2:]}")
     if not lo < hi:
         t.fail("upper", f"must be > lower = {lo!r}, got {hi!r}")
     scale = t.number("scale", required=False, default=hi - lo, positive=True)
@@ -253,19 +257,9 @@ def parse(spec: dict, scene: Scene) -> Problem:
 
 
 def load(path, scene: Scene) -> Problem:
-    """Read and validate an optimisation file (TOML); :class:`OptimizeError` names the file or key."""
-    p = str(path)
-    try:
-        with open(p, "rb") as f:
-            spec = tomllib.load(f)
-    except FileNotFoundError:
-        raise OptimizeError("optimisation file not found", p) from None
-    except IsADirectoryError:
-        raise OptimizeError("is a directory, not an optimisation file", p) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise OptimizeError(f"malformed TOML: {exc}", p) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise OptimizeError(f"cannot read: {exc}", p) from None
+    """Read and validate an optimisation file (TOML, read by :mod:`beltjax.textfile`: a regular
+    file of bounded size); :class:`OptimizeError` names the file or key."""
+    spec = textfile.load_toml(str(path), "optimisation", textfile.keyed(_raise))
     return parse(spec, scene)
 
 

@@ -13,15 +13,26 @@ Not synthesised: the frequencies are the bench measurements printed in the thesi
   moment that holds it; the arm angle and the tension then follow.  The two rotational modes
   are left out: both move the arm, whose centre of mass (the thesis' x_cm1) is not printed.
 
+Each dataset folder holds copies of the scenes it fits (a dataset names only files inside its own
+folder); tests/test_identification_modal.py checks that they equal the files in ``scenes/``.
+
 Run from the repository root: ``python identification/examples/make_bench_modal.py``.
 """
 
 import json
 import pathlib
+import shutil
 
 HERE = pathlib.Path(__file__).resolve().parent
 REPO = HERE.parents[1]
 REFERENCE = REPO.parent / "shared" / "reference" / "thesis_reference.json"
+SCENES = REPO / "scenes"
+
+
+def _scene_copy(out: pathlib.Path, name: str) -> str:
+    """Copy scenes/<name> into the dataset folder ``out``; the dataset's line naming it."""
+    shutil.copyfile(SCENES / name, out / name)
+    return f'scene = "{name}"   # a copy of scenes/{name}'
 
 
 def _mode_line(label: str, f: float, span: str | None = None) -> str:
@@ -48,7 +59,7 @@ def main() -> None:
         lines += [
             "[[modal.configuration]]",
             f'name = "T{T}"',
-            f'scene = "../../../scenes/two_pulley_T{T}.toml"   # X_A = {c["X_A"]} m',
+            _scene_copy(out, f"two_pulley_T{T}.toml") + f' (X_A = {c["X_A"]} m)',
             "modes = [",
         ]
         lines += [_mode_line(shape, f_exp) for _, _, f_exp, shape in c["modes"] if f_exp is not None]
@@ -77,7 +88,7 @@ def _tensioner(ref) -> None:
         "",
         "[[modal.configuration]]",
         'name = "stage2"',
-        'scene = "../../../scenes/tensioner_bench_stage2.toml"',
+        _scene_copy(out, "tensioner_bench_stage2.toml"),
         "modes = [",
     ]
     for _, _, f_exp, shape in stage2["modal"]["modes"]:

@@ -1,0 +1,79 @@
+"""Spans a transient flags in its outputs, and the one-line warnings of a run.
+
+Both fidelities assume taut spans wrapped on their pulleys and pulling on them.  At every
+output sample a span whose elastic tension is <= 0 has gone slack (:func:`slack_spans`), and
+one whose force on the pulleys (tension less rhoA c^2 lam, :mod:`beltjax.critical`) is <= 0
+has passed the critical belt speed (:func:`supercritical_spans`): the model's answer there
+is not physical.  One mechanism finds both (:func:`span_episodes`); :func:`run_warnings`
+words them, with the excitation warnings of :mod:`beltjax.excitation`, one line each, as
+``beltjax simulate`` prints them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from beltjax import excitation
+
+
+def span_episodes(t, values, names, value_key: str, at_first: dict | None = None) -> list[dict]:
+    """Spans whose ``values`` (nt, n) fell to zero or below at an output sample of t (s).
+
+    One record per such span: span, ``value_key`` (the lowest value), t_first_s, t_last_s
+    (the first and last such samples), samples (how many) and, for each name -> (nt,) array
+    of ``at_first``, its value at the first such sample; [] when none did.  Dips shorter than
+    the output interval can pass between samples.  The one mechanism of :func:`slack_spans`
+    and :func:`supercritical_spans`.
+    """
+    out = []
+    for j, name in enumerate(names):
+        bad = np.flatnonzero(values[:, j] <= 0.0)
+        if bad.size:
+            rec = dict(span=name, t_first_s=float(t[bad[0]]), t_last_s=float(t[bad[-1]]), samples=int(bad.size))
+            rec[value_key] = float(np.min(values[:, j]))
+            rec.update({k: float(v[bad[0]]) for k, v in (at_first or {}).items()})
+            out.append(rec)
+    return out
+
+
+def slack_spans(t, tensions, names) -> list[dict]:
+    """Spans whose elastic tension (N) fell to zero or below at an output sample of t (s).
+
+    Both fidelities assume taut spans wrapped on the pulleys: a belt cannot push, so where a
+    span's tension goes negative the real belt hangs slack and the model's answer there is
+    not physical.  Returns one record per such span: span, min_tension_N, t_first_s,
+    t_last_s (the first and last slack samples) and samples (how many); [] when all stayed
+    taut.  Dips shorter than the output interval can pass between samples.
+    """
+    return span_episodes(t, tensions, names, "min_tension_N")
+
+
+def supercritical_spans(t, forces, names, belt_speed) -> list[dict]:
+    """Spans whose force on the pulleys (tension less rhoA c^2 lam, N: :mod:`beltjax.critical`)
+    fell to zero or below at an output sample of t (s): past the critical belt speed.
+
+    Both fidelities then describe a belt that would lift off its pulleys (and the hybrid
+    model's span has lost its transverse stiffness): not physical.  Records as
+    :func:`slack_spans` with min_force_N and belt_speed_m_s (m/s) at the first such sample.
+    """
+    return span_episodes(t, forces, names, "min_force_N", {"belt_speed_m_s": belt_speed})
+
+
+def slack_warning(record: dict) -> str:
+    """One line saying that (and when) a span went slack, from a :func:`slack_spans` record,
+    or passed the critical speed, from a :func:`supercritical_spans` record."""
+    when = f"{record['samples']} output samples between t = {record['t_first_s']:.4g} and {record['t_last_s']:.4g} s"
+    if "min_force_N" in record:
+        return (f"warning: span {record['span']!r} passed the critical speed ({when}, from belt speed "
+                f"{record['belt_speed_m_s']:.4g} m/s; its force on the pulleys, tension less rhoA c^2 lam, down to "
+                f"{record['min_force_N']:.4g} N): the belt would lift off the pulleys, so the results there are not "
+                "physical")
+    return (f"warning: span {record['span']!r} went slack ({when}, tension down to {record['min_tension_N']:.4g} N): "
+            "the model assumes taut spans, so its results there are not physical")
+
+
+def run_warnings(meta: dict) -> list[str]:
+    """The one-line warnings of a run, from its meta: slack spans, spans past the critical
+    speed (:func:`slack_warning`) and forcing the step resolves poorly (:func:`beltjax.excitation.warning`)."""
+    lines = [slack_warning(r) for k in ("slack_spans", "supercritical_spans") for r in meta.get(k, [])]
+    return lines + [excitation.warning(r) for r in meta.get("excitation_warnings", [])]
