@@ -1,7 +1,8 @@
 """Layout optimisation: the README's worked example (``scenes/optimize/tensioner_pivot.toml``).
 
-Run: ``python benchmarks/bench_optimize.py`` (about 4-6 min on the 2-core machine) or
-``--quick`` (30 steps on a 4-element mesh, about 2 min); writes
+Run: ``python benchmarks/bench_optimize.py`` (about 7 min on the idle 2-core machine, 4 of
+them the robustness runs; ``--no-robust`` skips those) or ``--quick`` (30 steps on a 4-element
+mesh, about 2 min); writes
 ``benchmarks/results/optimize.json`` (and, without ``--quick``, the README figures
 ``benchmarks/figures/optimize_*.png``).
 
