@@ -1195,16 +1195,20 @@ def progress_bar(label: str = "sweep") -> Callable[[int, int], None]:
 def summary_table(cols: Mapping[str, np.ndarray], stats: Mapping[str, dict], labels: list[str] | None = None,
                   max_rows: int = 40) -> str:
     """A readable table of the statistics of the output columns."""
-    lines = [f"{'output':<46} {'mean':>11} {'std':>10} {'min':>11} {'max':>11} {'p5':>11} {'p95':>11}"]
-    f = lambda x: f"{x:>11.5g}" if x is not None else f"{'-':>11}"  # noqa: E731
+    names = []
     for name in list(cols)[:max_rows]:
         if name in ("converged", "stable"):
             continue
-        s = stats[name]
         lab = name
         if labels and name.startswith("f") and name[1:-3].isdigit() and int(name[1:-3]) - 1 < len(labels):
             lab = f"{name} {labels[int(name[1:-3]) - 1]}"
-        lines.append(f"{lab[:46]:<46} {f(s['mean'])} {f(s['std'])[1:]} {f(s['min'])} {f(s['max'])} {f(s['p5'])} "
+        names.append((name, lab))
+    w = max([len("output"), *(len(lab) for _, lab in names)])  # the longest name, never cut
+    lines = [f"{'output':<{w}} {'mean':>11} {'std':>10} {'min':>11} {'max':>11} {'p5':>11} {'p95':>11}"]
+    f = lambda x: f"{x:>11.5g}" if x is not None else f"{'-':>11}"  # noqa: E731
+    for name, lab in names:
+        s = stats[name]
+        lines.append(f"{lab:<{w}} {f(s['mean'])} {f(s['std'])[1:]} {f(s['min'])} {f(s['max'])} {f(s['p5'])} "
                      f"{f(s['p95'])}")
     if len(cols) > max_rows:
         lines.append(f"({len(cols) - max_rows} more columns in sweep.json)")

@@ -413,3 +413,12 @@ def test_campbell_output(scene, grid, tmp_path, capsys):
         assert F[i, 1, 1] / F[i, 0, 1] == pytest.approx(expected, rel=0.01)
     data = json.loads((tmp_path / "sweep.json").read_text())
     assert data["summary"]["campbell_unstable_from_rpm"]["count"] == 0  # stable up to 2000 rpm
+
+
+def test_summary_table_never_cuts_a_name():
+    """Output names as long as a long pulley name makes them are printed whole."""
+    name = "hub_" + "power_steering_pump_with_a_very_long_name_" * 2 + "N"
+    stats = {name: sweep.statistics(np.array([1.0, 2.0])), "tension_a-b_N": sweep.statistics(np.array([3.0]))}
+    text = sweep.summary_table({name: None, "tension_a-b_N": None}, stats)
+    assert name in text and "tension_a-b_N" in text
+    assert len(text.splitlines()) == 3
