@@ -216,6 +216,14 @@ def mass_matrix(rhoA, L):
     return jax.hessian(kinetic_energy, argnums=1)(z, z, 0.0, rhoA, L)
 
 
+@jax.jit
+def component_mass_matrix(rhoA, L):
+    """Mass matrix (kg) of one displacement component (x or y) of the element, shape (4, 4),
+    over that component of (r1, r1', r2, r2'): the (x, x) block of :func:`mass_matrix`, which
+    does not couple the components (the cubic Hermite element's consistent mass, eq. 3.9)."""
+    return mass_matrix(rhoA, L)[0::2, 0::2]
+
+
 def gyroscopic_matrix(c, rhoA, L):
     """Skew gyroscopic matrix G (kg/s) of the linearised moving element (eq. 3.39).
 

@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, modal, statics
+from beltjax import drive, modal, span, statics
 from beltjax.scene import Scene
 
 #: a mode below this frequency (Hz) is a rigid-body mode
@@ -246,20 +246,6 @@ def _half_waves(w):
     return int(np.sum(inner)) + 1
 
 
-def _scalar_mass(rhoA, Le, N):
-    """Assembled scalar mass matrix of a span (one displacement component): the cubic
-    element's consistent mass (eq. 3.9 per component), (2 (N+1), 2 (N+1)), kg."""
-    L = Le
-    m = rhoA * L / 420.0 * np.array(
-        [[156, 22 * L, 54, -13 * L], [22 * L, 4 * L**2, 13 * L, -3 * L**2],
-         [54, 13 * L, 156, -22 * L], [-13 * L, -3 * L**2, -22 * L, 4 * L**2]]
-    )
-    M = np.zeros((2 * (N + 1), 2 * (N + 1)))
-    for e in range(N):
-        M[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += m
-    return M
-
-
 def _fine_profile(u, Le, N, per_element: int = 16):
     """Displacement profile along a span from nodal (value, slope) pairs, by the cubic shape functions."""
     x = (np.arange(per_element) + 0.5) / per_element
@@ -301,7 +287,8 @@ def full_energy_shares(V, scene: Scene, arrays: dict):
     shares, trans, longi = {}, [], []
     names = drive.span_names(scene)
     for s in range(n):
-        Ms = _scalar_mass(float(scene.belt.rhoA) if drive.flexible(scene) else 0.0, float(Le[s]), N)
+        Ms = np.asarray(span.span_component_mass(float(scene.belt.rhoA) if drive.flexible(scene) else 0.0,
+                                                   float(Le[s]), N))
         blk = V[s * ns : (s + 1) * ns].reshape(N + 1, 2, 2, -1)  # node, (pos, slope), (x, y), mode
         ul = np.einsum("nkdm,d->nkm", blk, t[s]).reshape(2 * (N + 1), -1)
         ut = np.einsum("nkdm,d->nkm", blk, nrm[s]).reshape(2 * (N + 1), -1)

@@ -185,6 +185,23 @@ def problem(f: Field, value) -> str | None:
     return None
 
 
+def number(value, key: str, field: str) -> float:
+    """A concrete API argument as a float in the range of the schema ``field``, else a
+    :class:`beltjax.errors.BeltjaxError` naming ``key`` (e.g. ``speed: must be finite, got nan``)."""
+    from beltjax.errors import BeltjaxError
+
+    try:
+        if isinstance(value, (bool, str, bytes)) or np.ndim(value) != 0:
+            raise TypeError
+        v = float(value)
+    except (TypeError, ValueError):
+        raise BeltjaxError(f"expected a number, got {value!r}", key) from None
+    msg = problem(FIELDS[field], v)
+    if msg:
+        raise BeltjaxError(msg, key)
+    return v
+
+
 def bad(f: Field, values) -> np.ndarray:
     """Vectorised :func:`problem`: a bool array, True where a value is not accepted."""
     v = np.asarray(values, dtype=float)

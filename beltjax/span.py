@@ -65,6 +65,17 @@ def span_mass_matrix(rhoA, L0, idx):
     return jax.hessian(span_kinetic_energy, argnums=1)(z, z, 0.0, rhoA, L0, idx)
 
 
+def span_component_mass(rhoA, Le, n_elements: int):
+    """Assembled mass (kg) of one displacement component of a span of ``n_elements`` equal
+    elements of length Le (m), shape (2 (N+1), 2 (N+1)), over (r_k, r_k') of node k of that
+    component (from :func:`beltjax.ancf.component_mass_matrix`, so from the kinetic energy)."""
+    m = ancf.component_mass_matrix(rhoA, Le)
+    idx = 2 * np.arange(n_elements)[:, None] + np.arange(4)[None, :]
+    size = 2 * (n_elements + 1)
+    blocks = jnp.broadcast_to(m, (n_elements, 4, 4))
+    return jnp.zeros((size, size), dtype=m.dtype).at[idx[:, :, None], idx[:, None, :]].add(blocks)
+
+
 def span_inertial_forces(q, q_dot, c, c_dot, rhoA, L0, idx):
     """Assembled velocity and transport inertial forces of a span (N): ``ancf.inertial_forces`` summed."""
     f = jax.vmap(ancf.inertial_forces, in_axes=(0, 0, None, None, None, None))(q[idx], q_dot[idx], c, c_dot, rhoA, L0)
@@ -212,19 +223,6 @@ def _label_modes(shapes, M_free, free):
     return shares, labels
 
 
-def _number(key: str, x, field: str) -> float:
-    try:
-        if isinstance(x, (bool, str, bytes)) or np.ndim(x) != 0:
-            raise TypeError
-        v = float(x)
-    except (TypeError, ValueError):
-        raise BeltjaxError(f"expected a number, got {x!r}", key) from None
-    msg = schema.problem(schema.FIELDS[field], v)
-    if msg:
-        raise BeltjaxError(msg, key)
-    return v
-
-
 def check_arguments(length, tension, EA, EI, rhoA, speed=0.0, n_elements=20, bc="pinned", bending="linear", *,
                     keys=None):
     """The arguments of :func:`analyse_span` as floats, an int and a (left, right) pair, or a
@@ -233,10 +231,10 @@ def check_arguments(length, tension, EA, EI, rhoA, speed=0.0, n_elements=20, bc=
     as the belt's), and a span that float64 can carry (:func:`beltjax.schema.string_spread`).
     keys: {argument: name in messages} (the command line's ``--length``, ...)."""
     key = {k: k for k in ("length", "tension", "EA", "EI", "rhoA", "speed")} | dict(keys or {})
-    length = _number(key["length"], length, "span.length")
-    tension = _number(key["tension"], tension, "span.tension")
-    EA, EI, rhoA = (_number(key[k], x, f"belt.{k}") for k, x in (("EA", EA), ("EI", EI), ("rhoA", rhoA)))
-    speed = _number(key["speed"], speed, "span.speed")
+    length = schema.number(length, key["length"], "span.length")
+    tension = schema.number(tension, key["tension"], "span.tension")
+    EA, EI, rhoA = (schema.number(x, key[k], f"belt.{k}") for k, x in (("EA", EA), ("EI", EI), ("rhoA", rhoA)))
+    speed = schema.number(speed, key["speed"], "span.speed")
     if (isinstance(n_elements, bool) or not isinstance(n_elements, (int, np.integer))
             or not 1 <= n_elements <= MAX_ELEMENTS):
         raise BeltjaxError(f"must be an integer from 1 to {MAX_ELEMENTS}, got {n_elements!r}", "n_elements")

@@ -360,19 +360,7 @@ def case_status(scene: Scene, values, n: int) -> tuple[np.ndarray, dict[str, tup
     return status, first
 
 
-def number(value, key: str, field: str) -> float:
-    """A concrete API argument as a float in the range of the schema ``field``, else a
-    :class:`BeltjaxError` naming ``key`` (e.g. ``speed: must be finite, got nan``)."""
-    try:
-        if isinstance(value, (bool, str, bytes)) or np.ndim(value) != 0:
-            raise TypeError
-        v = float(value)
-    except (TypeError, ValueError):
-        raise BeltjaxError(f"expected a number, got {value!r}", key) from None
-    msg = schema.problem(schema.FIELDS[field], v)
-    if msg:
-        raise BeltjaxError(msg, key)
-    return v
+number = schema.number  # the one check of a concrete API argument (beltjax.schema)
 
 
 def speeds(values, key: str = "rpm", field: str = "drive.rpm") -> np.ndarray:

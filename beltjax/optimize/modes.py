@@ -42,27 +42,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from beltjax import drive, drive_modal, modal
+from beltjax import drive, drive_modal, modal, span
 from beltjax.scene import Scene
 
 #: width of the weight's ramp below a span mode, as a margin of kinetic-energy share (module docstring)
 SPAN_RAMP = 0.1
 
 _sg = jax.lax.stop_gradient
-
-
-def _span_mass(rhoA, Le, N: int):
-    """Assembled consistent mass of one displacement component of a span, (2(N+1), 2(N+1)) kg
-    (as ``beltjax.drive_modal._scalar_mass``, in JAX)."""
-    L = Le
-    m = rhoA * L / 420.0 * jnp.array(
-        [[156.0, 22 * L, 54.0, -13 * L], [22 * L, 4 * L**2, 13 * L, -3 * L**2],
-         [54.0, 13 * L, 156.0, -22 * L], [-13 * L, -3 * L**2, -22 * L, 4 * L**2]]
-    )
-    M = jnp.zeros((2 * (N + 1), 2 * (N + 1)))
-    for e in range(N):
-        M = M.at[2 * e:2 * e + 4, 2 * e:2 * e + 4].add(m)
-    return M
 
 
 def class_energies(V, scene: Scene, inst):
@@ -77,7 +63,7 @@ def class_energies(V, scene: Scene, inst):
     rhoA = scene.belt.rhoA if drive.flexible(scene) else 0.0
     tr = lo = jnp.zeros(V.shape[1])
     for s in range(n):
-        Ms = _span_mass(rhoA, Le[s], N)
+        Ms = span.span_component_mass(rhoA, Le[s], N)
         blk = V[s * ns:(s + 1) * ns].reshape(N + 1, 2, 2, -1)  # node, (pos, slope), (x, y), column
         ul = jnp.einsum("nkdm,d->nkm", blk, t[s]).reshape(2 * (N + 1), -1)
         ut = jnp.einsum("nkdm,d->nkm", blk, nrm[s]).reshape(2 * (N + 1), -1)
