@@ -155,6 +155,18 @@ def install(scene: Scene) -> Installation:
     )
 
 
+def check_arm_layout(scene: Scene, arm_angle_deg: float) -> None:
+    """Raise :class:`StaticsError` (one line, key ``tensioner``) if, with the tensioner arm at
+    its equilibrium angle ``arm_angle_deg`` (deg), the idler overlaps a pulley or the belt has no
+    path round it (the scene's ``arm_angle_deg`` is only the starting guess)."""
+    from beltjax import validate
+
+    status, first = validate.arm_layout_status(scene, arm_angle_deg)
+    if status[0] != "ok":
+        msg = first[str(status[0])][1].split(": ", 1)[1]
+        raise StaticsError(f"at its equilibrium arm angle {arm_angle_deg:.4g} deg: {msg}", "tensioner")
+
+
 def check_installation(scene: Scene, inst: Installation) -> None:
     """Raise :class:`StaticsError` (one line) if the belt cannot be installed as given."""
     b = scene.belt
@@ -436,6 +448,7 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     )
     if scene.tensioner is not None:
         th = float(out["theta"])
+        check_arm_layout(scene, math.degrees(th))
         res.tensioner_angle_deg = math.degrees(th)
         res.spring_moment_Nm = float(drive.spring_moment(th, scene))
         k = order.index(TENSIONER)

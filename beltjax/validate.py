@@ -345,10 +345,27 @@ def check_scene(scene: Scene) -> Scene:
 def case_status(scene: Scene, values, n: int) -> tuple[np.ndarray, dict[str, tuple[int, str]]]:
     """Vectorised checks of a case table {path: (n,) values} on ``scene``: ((n,) status names,
     "ok" where every check passes; {status: (first case, its one-line message)})."""
+    return _statuses(list(_checks(scene, values)), n, STATUSES)
+
+
+def arm_layout_status(scene: Scene, arm_angle_deg, values=None, n: int = 1
+                      ) -> tuple[np.ndarray, dict[str, tuple[int, str]]]:
+    """The layout checks ("overlap", "no_belt_path") of a tensioner drive with its arm at
+    ``arm_angle_deg`` (deg; scalar or (n,), e.g. the solved equilibrium angle of each case of
+    ``values``): the scene's ``arm_angle_deg`` is only a guess, and the arm settles where the
+    spring balances the belt.  Returns what :func:`case_status` returns."""
+    vals = dict(values or {})
+    vals["tensioner.arm_angle_deg"] = np.broadcast_to(np.asarray(arm_angle_deg, dtype=float), (n,))
+    t, _ = table(scene, vals)
+    with np.errstate(all="ignore"):
+        checks = [c for c in _geometry_checks(scene, t) if c[0] in ("overlap", "no_belt_path")]
+    return _statuses(checks, n, ("overlap", "no_belt_path"))
+
+
+def _statuses(checks, n: int, names) -> tuple[np.ndarray, dict[str, tuple[int, str]]]:
     status = np.full(n, "ok", dtype=object)
     first: dict[str, tuple[int, str]] = {}
-    checks = list(_checks(scene, values))
-    for name in STATUSES:
+    for name in names:
         for st, bad, describe in checks:
             if st != name:
                 continue

@@ -427,3 +427,42 @@ def test_every_shipped_scene_loads():
     for p in files:
         sc = scene_mod.load_scene(p)
         assert validate.scene_problem(sc) is None, p
+
+
+def test_the_idler_is_checked_where_the_arm_settles():
+    """The scene's arm_angle_deg is only Newton's starting guess: the layout checks run again with
+    the idler at the solved arm angle (statics, and every sweep case at its own angle).  With the
+    crank moved to x = 0.84 m the guess (60 deg) is clear and the idler overlaps the crank's rim
+    between about 20 and 40 deg."""
+    from beltjax import statics
+
+    sc = loads_scene(substitute(BENCH, ("center = [0.8973, 0.2]", "center = [0.84, 0.2]"),
+                                ("arm_angle_deg = 46.5", "arm_angle_deg = 60.0")))
+    statics.check_arm_layout(sc, 60.0)
+    with pytest.raises(BeltjaxError, match=r"^tensioner: at its equilibrium arm angle 30 deg: no crossed tangent "
+                                           r"from 'crank' to 'tensioner': centre distance 0\.13"):
+        statics.check_arm_layout(sc, 30.0)
+    status, first = validate.arm_layout_status(sc, np.array([60.0, 30.0, 90.0, 25.0]), n=4)
+    assert status.tolist() == ["ok", "overlap", "ok", "overlap"]
+    assert first["overlap"][0] == 1
+
+
+def test_a_sweep_checks_each_case_at_its_solved_arm_angle(monkeypatch):
+    """sweep.evaluate hands each case's solved arm angle to the layout checks, and a case whose
+    idler overlaps there gets status "overlap" and NaN outputs (rotational model, statics only)."""
+    sc = loads_scene(substitute(BENCH, ('fidelity = "ancf"', 'fidelity = "rotational"')))
+    seen = {}
+    real = validate.arm_layout_status
+
+    def spy(scene, arm_angle_deg, values=None, n=1):
+        seen["angles"] = np.array(arm_angle_deg, dtype=float)
+        status, first = real(scene, arm_angle_deg, values, n)
+        status[1] = "overlap"  # as if the second case's idler met a pulley where its arm settled
+        return status, first
+
+    monkeypatch.setattr(validate, "arm_layout_status", spy)
+    res = sweep.evaluate(sc, {"tensioner.spring_preload_deg": np.array([94.5, 90.0])}, ("statics",), chunk=2)
+    assert res["status"].tolist() == ["ok", "overlap"]
+    assert seen["angles"][0] == res["tensioner_angle_deg"][0]
+    assert 40.0 < seen["angles"][0] < 70.0 and 40.0 < seen["angles"][1] < 70.0
+    assert np.all(np.isnan(res["span_tensions_N"][1])) and np.all(np.isfinite(res["span_tensions_N"][0]))
