@@ -268,7 +268,7 @@ def derived_rows() -> list[tuple[str, str, str]]:
     return [
         ("(EA/Le^2 + EI/Le^4) of the shortest span over that of the longest (Le = span / elements)",
          f"<= {_g(MAX_SPAN_SPREAD)}", "float64 eigen-solves lose the long spans' frequencies beside a pinched span"),
-        ("(EA/Le^2 + EI/Le^4) over (T + EI pi^2/L^2) pi^2/L^2 of the longest span (tension T given)",
+        ("(EA/Le^2 + EI/Le^4) over (T + EI pi^2/L^2) pi^2/L^2 of the longest span (T: the given tension, or the installed one of a belt given by length)",
          f"<= {_g(MAX_STRING_SPREAD)}", "the axial stiffness swamps the string stiffness: frequencies off by 1e-4"),
         ("EI / (EA Le^2) of the shortest element", f"<= {_g(MAX_BENDING_RATIO)}",
          "bending swamps the axial stiffness: the rotational and longitudinal modes are lost"),

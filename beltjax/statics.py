@@ -155,16 +155,22 @@ def install(scene: Scene) -> Installation:
     )
 
 
-def check_arm_layout(scene: Scene, arm_angle_deg: float) -> None:
-    """Raise :class:`StaticsError` (one line, key ``tensioner``) if, with the tensioner arm at
-    its equilibrium angle ``arm_angle_deg`` (deg), the idler overlaps a pulley or the belt has no
-    path round it (the scene's ``arm_angle_deg`` is only the starting guess)."""
+def check_solved(scene: Scene, tension_N: float, arm_angle_deg: float | None = None) -> None:
+    """Raise :class:`StaticsError` (one line) if the solved installation fails a check that the
+    scene alone could not decide (:func:`beltjax.validate.solved_status`): a tensioner's idler
+    that overlaps a pulley, or leaves no belt path, at its equilibrium arm angle ``arm_angle_deg``
+    (deg; key ``tensioner``), or an axial stiffness that swamps the string stiffness at the
+    installation tension ``tension_N`` (N; key ``belt.EA``)."""
     from beltjax import validate
 
-    status, first = validate.arm_layout_status(scene, arm_angle_deg)
-    if status[0] != "ok":
-        msg = first[str(status[0])][1].split(": ", 1)[1]
-        raise StaticsError(f"at its equilibrium arm angle {arm_angle_deg:.4g} deg: {msg}", "tensioner")
+    status, first = validate.solved_status(scene, tension_N, arm_angle_deg)
+    st = str(status[0])
+    if st == "ok":
+        return
+    msg = first[st][1]
+    if st in ("overlap", "no_belt_path"):
+        raise StaticsError(f"at its equilibrium arm angle {arm_angle_deg:.4g} deg: {msg.split(': ', 1)[1]}", "tensioner")
+    raise StaticsError(msg)
 
 
 def check_installation(scene: Scene, inst: Installation) -> None:
@@ -426,6 +432,7 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     order = scene.route.order
     hubs = np.asarray(out["hubs"])
     inst = out["inst"]
+    check_solved(scene, float(inst.tension), math.degrees(float(out["theta"])) if scene.tensioner is not None else None)
     res = StaticResult(
         span_names=names,
         span_tensions_N=tensions,
@@ -448,7 +455,6 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     )
     if scene.tensioner is not None:
         th = float(out["theta"])
-        check_arm_layout(scene, math.degrees(th))
         res.tensioner_angle_deg = math.degrees(th)
         res.spring_moment_Nm = float(drive.spring_moment(th, scene))
         k = order.index(TENSIONER)

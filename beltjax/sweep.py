@@ -571,12 +571,12 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     if "statics" in outputs:
         res["span_tensions_N"] = out["tensions"]
         res["hub_forces_N"] = jnp.linalg.norm(out["hubs"], axis=1)
-        res["installation_tension_N"] = inst.tension
         res["belt_length_m"] = inst.belt_length
         if sc.tensioner is not None:
             res["spring_moment_Nm"] = drive.spring_moment(out["theta"], sc)
         res["converged"] = conv > 0.5
-    if sc.tensioner is not None:  # also checks the layout at the solved arm angle (evaluate)
+    res["installation_tension_N"] = inst.tension  # evaluate checks each case's solved installation
+    if sc.tensioner is not None:
         res["tensioner_angle_deg"] = jnp.rad2deg(out["theta"])
     nr = drive_modal.n_rigid_modes(sc)
     stable = jnp.asarray(True)
@@ -903,11 +903,15 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     else:
         results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
     out = {k: np.concatenate([r[k] for r in results]) for k in results[0]}
-    if scene.tensioner is not None:  # the idler where the arm settles, not at the scene's guess
-        arm, _ = validate.arm_layout_status(scene, out["tensioner_angle_deg"], values, n)
-        pre = np.where(pre == _CODE["ok"], [_CODE[s] for s in arm], pre)
-        if "statics" not in outputs:
-            out.pop("tensioner_angle_deg")
+    # the checks that need each case's solved installation: the idler where its arm settles, the
+    # string-spread limit at the installed tension (validate.solved_status)
+    arm = out["tensioner_angle_deg"] if scene.tensioner is not None else None
+    solved, _ = validate.solved_status(scene, out["installation_tension_N"], arm, values, n)
+    solved_ok = (pre == _CODE["ok"]) & np.isin(out["code"], (_CODE["ok"], _CODE["unstable"]))
+    pre = np.where(solved_ok, [_CODE[s] for s in solved], pre)
+    if "statics" not in outputs:
+        out.pop("installation_tension_N")
+        out.pop("tensioner_angle_deg", None)
     out = _finish(out, pre, rpm)
     for key, o in (("mode_labels", "modal"), ("campbell_mode_labels", "campbell")):
         if o in outputs:

@@ -348,18 +348,22 @@ def case_status(scene: Scene, values, n: int) -> tuple[np.ndarray, dict[str, tup
     return _statuses(list(_checks(scene, values)), n, STATUSES)
 
 
-def arm_layout_status(scene: Scene, arm_angle_deg, values=None, n: int = 1
-                      ) -> tuple[np.ndarray, dict[str, tuple[int, str]]]:
-    """The layout checks ("overlap", "no_belt_path") of a tensioner drive with its arm at
-    ``arm_angle_deg`` (deg; scalar or (n,), e.g. the solved equilibrium angle of each case of
-    ``values``): the scene's ``arm_angle_deg`` is only a guess, and the arm settles where the
-    spring balances the belt.  Returns what :func:`case_status` returns."""
+def solved_status(scene: Scene, tension_N, arm_angle_deg=None, values=None, n: int = 1
+                  ) -> tuple[np.ndarray, dict[str, tuple[int, str]]]:
+    """The checks that need the solved installation, run again with it: the layout with a
+    tensioner's arm at its equilibrium ``arm_angle_deg`` (deg; the scene's ``arm_angle_deg`` is
+    only Newton's guess) and the string-spread limit at the installation tension ``tension_N``
+    (N; a belt given by its length has no tension before the statics).  Scalars or (n,) arrays,
+    one per case of ``values``; statuses "overlap", "no_belt_path", "ill_conditioned".  Returns
+    what :func:`case_status` returns."""
     vals = dict(values or {})
-    vals["tensioner.arm_angle_deg"] = np.broadcast_to(np.asarray(arm_angle_deg, dtype=float), (n,))
+    vals["belt.static_tension"] = np.broadcast_to(np.asarray(tension_N, dtype=float), (n,))
+    if scene.tensioner is not None and arm_angle_deg is not None:
+        vals["tensioner.arm_angle_deg"] = np.broadcast_to(np.asarray(arm_angle_deg, dtype=float), (n,))
     t, _ = table(scene, vals)
     with np.errstate(all="ignore"):
-        checks = [c for c in _geometry_checks(scene, t) if c[0] in ("overlap", "no_belt_path")]
-    return _statuses(checks, n, ("overlap", "no_belt_path"))
+        checks = [c for c in _geometry_checks(scene, t) if c[0] != "invalid_value"]
+    return _statuses(checks, n, ("overlap", "no_belt_path", "ill_conditioned"))
 
 
 def _statuses(checks, n: int, names) -> tuple[np.ndarray, dict[str, tuple[int, str]]]:

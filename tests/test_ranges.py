@@ -429,6 +429,7 @@ def test_every_shipped_scene_loads():
         assert validate.scene_problem(sc) is None, p
 
 
+
 def test_the_idler_is_checked_where_the_arm_settles():
     """The scene's arm_angle_deg is only Newton's starting guess: the layout checks run again with
     the idler at the solved arm angle (statics, and every sweep case at its own angle).  With the
@@ -438,31 +439,51 @@ def test_the_idler_is_checked_where_the_arm_settles():
 
     sc = loads_scene(substitute(BENCH, ("center = [0.8973, 0.2]", "center = [0.84, 0.2]"),
                                 ("arm_angle_deg = 46.5", "arm_angle_deg = 60.0")))
-    statics.check_arm_layout(sc, 60.0)
+    statics.check_solved(sc, 450.0, 60.0)
     with pytest.raises(BeltjaxError, match=r"^tensioner: at its equilibrium arm angle 30 deg: no crossed tangent "
                                            r"from 'crank' to 'tensioner': centre distance 0\.13"):
-        statics.check_arm_layout(sc, 30.0)
-    status, first = validate.arm_layout_status(sc, np.array([60.0, 30.0, 90.0, 25.0]), n=4)
+        statics.check_solved(sc, 450.0, 30.0)
+    status, first = validate.solved_status(sc, 450.0, np.array([60.0, 30.0, 90.0, 25.0]), n=4)
     assert status.tolist() == ["ok", "overlap", "ok", "overlap"]
     assert first["overlap"][0] == 1
 
 
-def test_a_sweep_checks_each_case_at_its_solved_arm_angle(monkeypatch):
-    """sweep.evaluate hands each case's solved arm angle to the layout checks, and a case whose
-    idler overlaps there gets status "overlap" and NaN outputs (rotational model, statics only)."""
+def test_a_belt_given_by_length_is_checked_at_its_installed_tension(scenes):
+    """The string-spread limit needs the tension, which a belt given by its length has only once
+    installed: the statics checks it there (EA = 1e10 N installed at about 1 mN, 2 elements)."""
+    from beltjax import statics
+
+    sc = _small(scenes["T200"])
+    inst = statics.install(sc)
+    path = float(inst.belt_length * inst.stretch)
+    text = substitute(T200, ("EA = 111190.0", "EA = 1e10"), ("EI = 0.034", "EI = 0.0"),
+                      ("static_tension = 200.0", f"length = {path / (1 + 1e-13)!r}"))
+    bad = _small(loads_scene(text))  # accepted: no tension before the statics
+    with pytest.raises(BeltjaxError, match=r"^belt\.EA: the axial stiffness \(1e\+10 N over 2 elements per span\) "
+                                           r"is .* times the string stiffness .* at tension 0\.00"):
+        analyse_statics(bad)
+    status, _ = validate.solved_status(bad, np.array([1e-3, 1e3]), n=2)
+    assert status.tolist() == ["ill_conditioned", "ok"]
+
+
+def test_a_sweep_checks_each_case_at_its_solved_installation(monkeypatch):
+    """sweep.evaluate hands each case's solved arm angle and installed tension to the checks, and
+    a case that fails them gets their status and NaN outputs (rotational model, statics only)."""
     sc = loads_scene(substitute(BENCH, ('fidelity = "ancf"', 'fidelity = "rotational"')))
     seen = {}
-    real = validate.arm_layout_status
+    real = validate.solved_status
 
-    def spy(scene, arm_angle_deg, values=None, n=1):
-        seen["angles"] = np.array(arm_angle_deg, dtype=float)
-        status, first = real(scene, arm_angle_deg, values, n)
+    def spy(scene, tension_N, arm_angle_deg=None, values=None, n=1):
+        seen["T"], seen["angles"] = np.array(tension_N, dtype=float), np.array(arm_angle_deg, dtype=float)
+        status, first = real(scene, tension_N, arm_angle_deg, values, n)
+        assert status.tolist() == ["ok", "ok"]
         status[1] = "overlap"  # as if the second case's idler met a pulley where its arm settled
         return status, first
 
-    monkeypatch.setattr(validate, "arm_layout_status", spy)
+    monkeypatch.setattr(validate, "solved_status", spy)
     res = sweep.evaluate(sc, {"tensioner.spring_preload_deg": np.array([94.5, 90.0])}, ("statics",), chunk=2)
     assert res["status"].tolist() == ["ok", "overlap"]
-    assert seen["angles"][0] == res["tensioner_angle_deg"][0]
+    assert seen["angles"][0] == res["tensioner_angle_deg"][0] and seen["T"][0] == res["installation_tension_N"][0]
     assert 40.0 < seen["angles"][0] < 70.0 and 40.0 < seen["angles"][1] < 70.0
+    assert 300.0 < seen["T"][1] < 700.0
     assert np.all(np.isnan(res["span_tensions_N"][1])) and np.all(np.isfinite(res["span_tensions_N"][0]))

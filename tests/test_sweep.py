@@ -190,7 +190,8 @@ def test_unconverged_cases_are_retried_with_speed_stepping(scene, monkeypatch):
             assert EI.shape == (CHUNK,)  # always the padded chunk size: no recompilation
             fail = (opts.steps == 1) & (EI > 0.04)
             return {"code": np.where(fail, not_converged, 0),
-                    "span_tensions_N": np.stack([EI, np.full(CHUNK, opts.steps)], axis=1)}
+                    "span_tensions_N": np.stack([EI, np.full(CHUNK, opts.steps)], axis=1),
+                    "installation_tension_N": np.full(CHUNK, 200.0)}
         return batch
 
     monkeypatch.setattr(sweep, "_batch_fn", fake_batch_fn)
