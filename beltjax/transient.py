@@ -50,6 +50,7 @@ from beltjax.span_flags import run_warnings, slack_spans, slack_warning, supercr
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
+from beltjax.transient_outputs import UNITS, _columns, _outputs, _outputs_one, output_nodes  # noqa: F401
 
 __all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt", "default_solver",
            "slack_spans", "slack_warning", "supercritical_spans", "run_warnings"]
@@ -83,22 +84,6 @@ def default_output_dt(scene: Scene) -> float:
     if scene.simulation.output_dt_s is not None:
         return scene.simulation.output_dt_s
     return max(5e-4 if drive.flexible(scene) else 1e-3, default_dt(scene))
-
-
-def output_nodes(scene: Scene) -> list[tuple[int, int, str]]:
-    """(span index, node, label) of the span nodes whose displacement is recorded."""
-    if not drive.flexible(scene):
-        return []
-    names = drive.span_names(scene)
-    N = scene.model.elements_per_span
-    chosen = scene.simulation.nodes
-    if chosen is None:
-        chosen = [f"{nm}:{N // 2}" for nm in names]
-    out = []
-    for x in chosen:
-        nm, _, k = x.rpartition(":")
-        out.append((names.index(nm), int(k), x))
-    return out
 
 
 def _rigid_index(scene: Scene) -> dict[str, int]:
@@ -254,104 +239,6 @@ def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states, dt
 
 
 # --------------------------------------------------------------------------- outputs
-
-
-def _outputs_one(t, y, scene: Scene, inst, M_full):
-    """All output channels at one saved state (t s, y)."""
-    n_i = drive.n_independent(scene)
-    qi, qd = y[:n_i], y[n_i:]
-    n = len(scene.route.order)
-    nrp = drive.n_reaction_points(scene)
-
-    def phi(x, tt, shift, drv):
-        return drive.full_coordinates(x, scene, inst, driven_angle=drv, t=tt, shift=shift)
-
-    shift0 = jnp.zeros((nrp, 2))
-    drv0 = jnp.zeros(n)
-    q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t)
-    ti = drive.travel_inertia(q, v, gamma, scene, inst, t)
-    qdd = jnp.linalg.solve(*drive.with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))
-    a = J @ qdd + gamma
-    if ti is not None:  # the rhoA dc/dt force of the travel's own acceleration
-        F = F - ti.kappa * qdd[ti.k] * ti.P
-    c = drive.transient_transport_speed(scene, inst, v, t)[0]
-    R = F - M_full @ a  # applied minus inertial: what the constraints must balance
-    Js = jax.jacfwd(lambda s: phi(qi, t, s, drv0))(shift0)  # (nq, nrp, 2)
-    bearings = jnp.einsum("q,qkd->kd", R, Js)
-    Jd = jax.jacfwd(lambda d: phi(qi, t, shift0, d))(drv0)  # (nq, n)
-    hold = -(R @ Jd)  # torque the drive applies to keep a driven pulley on its motion
-
-    E, B = drive.split_full(q, scene)
-    _, Bd = drive.split_full(v, scene)
-    tensions = drive.span_tensions(q, scene, inst)
-    lam = drive.full_span_lengths(q, scene) / (drive.element_length(scene, inst) * drive.span_elements(scene))
-    pulley = critical.pulley_forces(tensions, lam, c, scene.belt.rhoA)  # whatever the effects
-    forces = pulley if scene.model.has("transport") else tensions
-    phis, theta = drive.angles_and_arm(qi, scene, inst)
-    out = dict(
-        span_tensions_N=tensions,
-        span_forces_N=forces,
-        _pulley_forces_N=pulley,  # for the critical-speed check; not an output channel
-        hub_forces_N=bearings,
-        hub_force_magnitudes_N=jnp.linalg.norm(bearings, axis=1),
-        pulley_speeds_rpm=Bd[:n, 2] * 60.0 / (2 * jnp.pi),
-        pulley_rotations_deg=jnp.rad2deg(phis),
-        drive_torques_Nm=hold,
-        belt_speed_m_s=c * inst.stretch,
-    )
-    if scene.tensioner is not None:
-        out["arm_angle_deg"] = jnp.rad2deg(theta)
-        out["spring_moment_Nm"] = drive.spring_moment(theta, scene)
-    nodes = output_nodes(scene)
-    if nodes:
-        disp = []
-        for s, k, _ in nodes:
-            r = E[s, 4 * k : 4 * k + 2]
-            N = scene.model.elements_per_span
-            r0 = inst.span_start[s] + (k / N) * (inst.span_end[s] - inst.span_start[s])
-            tan = inst.span_tangent[s]
-            disp.append((r - r0) @ jnp.stack([-tan[1], tan[0]]))
-        out["node_displacements_m"] = jnp.stack(disp)
-    return out
-
-
-@eqx.filter_jit
-def _outputs(ts, ys, scene: Scene, inst):
-    M_full = drive.full_mass_matrix(scene, inst)
-    return jax.vmap(lambda t, y: _outputs_one(t, y, scene, inst, M_full))(ts, ys)
-
-
-def _columns(scene: Scene) -> dict[str, list[str]]:
-    order = list(scene.route.order)
-    bearings = order + (["tensioner pivot"] if scene.tensioner is not None else [])
-    cols = dict(
-        span_tensions_N=drive.span_names(scene),
-        span_forces_N=drive.span_names(scene),
-        hub_forces_N=bearings,
-        hub_force_magnitudes_N=bearings,
-        pulley_speeds_rpm=order,
-        pulley_rotations_deg=order,
-        drive_torques_Nm=[n for n, f in zip(order, drive.is_free(scene)) if not f],
-    )
-    nodes = output_nodes(scene)
-    if nodes:
-        cols["node_displacements_m"] = [lab for _, _, lab in nodes]
-    return cols
-
-
-UNITS = dict(
-    span_tensions_N="N",
-    span_forces_N="N",
-    hub_forces_N="N",
-    hub_force_magnitudes_N="N",
-    pulley_speeds_rpm="rpm",
-    pulley_rotations_deg="deg",
-    drive_torques_Nm="N m",
-    belt_speed_m_s="m/s",
-    arm_angle_deg="deg",
-    spring_moment_Nm="N m",
-    node_displacements_m="m",
-)
 
 
 # --------------------------------------------------------------------------- result
@@ -578,3 +465,4 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
                              *excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed)],
     )
     return SimulationResult(t=t, channels=chans, columns=cols, meta=meta, y=ys)
+

@@ -194,7 +194,7 @@ def test_unconverged_cases_are_retried_with_speed_stepping(scene, monkeypatch):
                     "installation_tension_N": np.full(CHUNK, 200.0)}
         return batch
 
-    monkeypatch.setattr(sweep, "_batch_fn", fake_batch_fn)
+    monkeypatch.setattr(sweep.batch, "_batch_fn", fake_batch_fn)
     EI = np.array([0.02, 0.05, 0.03, 0.045, 0.01, 0.06, 0.02, 0.05, 0.05, 0.02])
     res = sweep.evaluate(scene, {"belt.EI": EI}, ("statics",), chunk=CHUNK)
     assert list(res["status"]) == ["ok"] * 10

@@ -1,0 +1,234 @@
+"""Full mass matrix and forces in full coordinates: span forces from the element energies (ANCF
+spans and massless bars), belt damping, the bodies' forces, loads and the tensioner spring; only
+the effects the scene lists are traced.  Units: N, N m, kg, kg m^2."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import ancf, span
+from beltjax.ancf import Section
+from beltjax.scene import ARM, TENSIONER, Scene
+from beltjax.drive.topology import GRAVITY, Installation, drive_pulley, element_length, flexible, section, span_elements, span_names, travel_follows_drive
+from beltjax.drive.kinematics import split_full
+
+
+def body_masses(scene: Scene, inst: Installation | None = None):
+    """Diagonal of the bodies' mass matrix: (m, m, J) per body (kg, kg, kg m^2).
+
+    With ``inst``, each pulley also carries the belt wrapped round it (no slip):
+    mass rhoA R wrap / lam and inertia that times R^2 (the arc's centre of mass is
+    taken at the pulley centre).
+    """
+    vals = []
+    for name in scene.route.order:
+        if name == TENSIONER:
+            t = scene.tensioner
+            vals.append(jnp.stack([t.pulley_mass, t.pulley_mass, t.pulley_inertia]))
+        else:
+            p = scene.pulley(name)
+            vals.append(jnp.stack([p.mass, p.mass, p.inertia]))
+    if inst is not None:
+        m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
+        vals = [v + jnp.stack([m, m, m * R**2]) for v, m, R in zip(vals, m_arc, inst.radii)]
+    if scene.tensioner is not None:
+        t = scene.tensioner
+        vals.append(jnp.stack([t.arm_mass, t.arm_mass, t.arm_inertia]))
+    return jnp.concatenate(vals)
+
+
+def full_mass_matrix(scene: Scene, inst: Installation):
+    """Block-diagonal mass matrix of the full coordinates (kg, kg m^2)."""
+    n = len(scene.route.order)
+    N = span_elements(scene)
+    idx = span.element_index(N)
+    Le = element_length(scene, inst)
+    if flexible(scene):
+        blocks = [span.span_mass_matrix(scene.belt.rhoA, Le[s], idx) for s in range(n)]
+    else:  # massless springs (the thesis' rotational model)
+        blocks = [jnp.zeros((4 * (N + 1), 4 * (N + 1))) for _ in range(n)]
+    blocks.append(jnp.diag(body_masses(scene, inst)))
+    return jax.scipy.linalg.block_diag(*blocks)
+
+
+def _span_potential(e, sec: Section, Le, idx, bending, gravity: bool):
+    U = span.span_strain_energy(e, sec, Le, idx, bending)
+    if gravity:
+        U = U + jnp.sum(jax.vmap(ancf.gravity_energy, in_axes=(0, None, None, None))(e[idx], sec.rhoA, Le, GRAVITY))
+    return U
+
+
+def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, dissipative=False):
+    """Forces on the coordinates of span ``s`` (N): elastic, plus the listed effects.
+
+    e, e_dot: the span's coordinates and rates; c: transport speed (m/s of
+    unstretched belt), c_dot its rate (m/s^2).  ``transport`` adds the
+    gyroscopic, centrifugal and rhoA dc/dt terms, ``gravity`` the weight;
+    with ``dissipative`` (transients) ``belt_damping`` adds the viscous axial
+    force of CA (N s): Rayleigh function 1/2 int CA (d eps/dt)^2 dx.
+    """
+    damp = dissipative and scene.model.has("belt_damping")
+    if not flexible(scene):
+        return _bar_forces(e, e_dot if damp else None, s, scene, inst, c)
+    N = scene.model.elements_per_span
+    idx = span.element_index(N)
+    sec = section(scene)
+    Le = element_length(scene, inst)[s]
+    grav = scene.model.has("gravity")
+    f = -jax.grad(_span_potential)(e, sec, Le, idx, scene.model.bending, grav)
+    if scene.model.has("transport"):
+        f = f + span.span_inertial_forces(e, e_dot, c, c_dot, sec.rhoA, Le, idx)
+    if damp:
+        f = f - jax.grad(_span_dissipation, argnums=1)(e, e_dot, scene.belt.CA, Le, idx)
+    return f
+
+
+def _element_dissipation(e, e_dot, CA, L):
+    """Rayleigh function of an element (W): 1/2 int CA (r'.r'_t)^2 dx (Green-Lagrange strain rate)."""
+
+    def density(xi):
+        return 0.5 * CA * (ancf.slope(e, xi, L) @ ancf.slope(e_dot, xi, L)) ** 2
+
+    return L * jnp.sum(ancf.WEIGHTS * jax.vmap(density)(ancf.XI))
+
+
+def _span_dissipation(e, e_dot, CA, Le, idx):
+    return jnp.sum(jax.vmap(_element_dissipation, in_axes=(0, 0, None, None))(e[idx], e_dot[idx], CA, Le))
+
+
+def _bar_energy(e, L0, EA, rhoA, c):
+    """Axial energy of a straight span as one bar, minus its transport (centrifugal) term (J).
+
+    Green-Lagrange, as the ANCF element: 1/2 EA L0 ((l/L0)^2 - 1)^2 / 4, so the axial force
+    is EA (lam^2 - 1)/2 * lam with lam = l / L0; the moving belt's kinetic energy
+    1/2 rhoA c^2 l^2 / L0 acts as a negative potential (hub force reduced by rhoA v^2).
+    """
+    d = e[4:6] - e[0:2]
+    return _bar_energy_l2(d @ d, L0, EA, rhoA, c)
+
+
+def _bar_energy_l2(l2, L0, EA, rhoA, c):
+    """:func:`_bar_energy` of a bar of squared length l2 (m^2)."""
+    eps = 0.5 * (l2 / L0**2 - 1.0)
+    return 0.5 * EA * L0 * eps**2 - 0.5 * rhoA * c**2 * l2 / L0
+
+
+def _bar_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0):
+    """Forces of a span of the rotational model on its end nodes (N), shape (8,).
+
+    e_dot: node rates for the viscous force (CA / L0) dl/dt along the bar (thesis eq. 4.15),
+    or None (no damping).
+    """
+    L0 = element_length(scene, inst)[s]
+    cc = c if scene.model.has("transport") else 0.0
+    f = -jax.grad(_bar_energy)(e, L0, scene.belt.EA, scene.belt.rhoA, cc)
+    if e_dot is not None:
+        d = e[4:6] - e[0:2]
+        u = d / jnp.linalg.norm(d)
+        rate = u @ (e_dot[4:6] - e_dot[0:2])
+        fd = scene.belt.CA / L0 * rate * u
+        f = f.at[0:2].add(fd).at[4:6].add(-fd)
+    return f
+
+
+def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_dot=None, t=None):
+    """Applied forces on the bodies (nb, 3): spring moment on the arm, weights (N, N m).
+
+    With a time ``t`` (s; transients) and the bodies' rates ``bodies_dot``: the listed
+    damping effects (bearing: -c_b times the pulley's absolute speed; tensioner: -c
+    times the arm's speed, N m s/rad) and the [[torque]] loads (N m).
+    """
+    f = jnp.zeros_like(bodies)
+    if scene.tensioner is not None:
+        f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
+    if scene.model.has("gravity"):
+        f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
+        if inst is not None and flexible(scene):
+            f = f.at[: len(scene.route.order), 2].add(_belt_weight_slide_moments(scene, inst, t is not None))
+    if t is None:
+        return f
+    order = scene.route.order
+    if scene.model.has("bearing_damping"):
+        for i, name in enumerate(order):
+            if name != TENSIONER:
+                f = f.at[i, 2].add(-scene.pulley(name).bearing_damping * bodies_dot[i, 2])
+    if scene.tensioner is not None and scene.model.has("tensioner_damping"):
+        f = f.at[-1, 2].add(-scene.tensioner.damping * bodies_dot[-1, 2])
+    for load in scene.torques:
+        k = -1 if load.pulley == ARM else order.index(load.pulley)
+        f = f.at[k, 2].add(torque(load, t))
+    return f
+
+
+def _belt_weight_slide_moments(scene: Scene, inst: Installation, transient: bool = False):
+    """Moments (N m) on the pulleys that make a rigid turn of the belt loop cost no weight.
+
+    A pulley's rotation perturbation slides the span end nodes along their spans (s R phi);
+    the belt itself flows through the spans, so sliding a span along its own line must not
+    move its weight.  The span's weight is counted with its nodes shifted back by the
+    interpolated end slides, (1 - x) s0 + x s1 along the span: that adds the potential
+    rhoA (g . t) L0 (s0 + s1) / 2 per span, i.e. these constant moments (a pure moment: the
+    bearing forces are unchanged).  In a transient whose belt travels with a free drive
+    pulley (:func:`travel_follows_drive`) the slides are taken relative to that travel,
+    s R phi - s_d R_d phi_d, which adds to the drive pulley's moment minus s_d R_d times the
+    others' sum of m_i / (s_i R_i): a rigid turn of the loop, which then moves no node, does no
+    work either.
+    """
+    n = len(scene.route.order)
+    g = jnp.asarray(GRAVITY)
+    L0 = element_length(scene, inst) * scene.model.elements_per_span
+    senses = jnp.asarray(scene.route.senses, dtype=L0.dtype)
+    w = scene.belt.rhoA * (inst.span_tangent @ g) * L0 / 2  # per span, N
+    prev = (np.arange(n) - 1) % n
+    m = -(w + w[prev]) * senses * inst.radii
+    if transient and travel_follows_drive(scene):
+        d = drive_pulley(scene)
+        m = m.at[d].add(-senses[d] * inst.radii[d] * jnp.sum(m / (senses * inst.radii)))
+    return m
+
+
+def _window(t, t_start, t_end):
+    on = t >= t_start
+    if t_end is not None:
+        on = on & (t < t_end)
+    return jnp.where(on, 1.0, 0.0)
+
+
+def torque(load, t):
+    """Moment of a [[torque]] load at time t (N m, CCW positive)."""
+    w = 2 * jnp.pi * load.frequency_hz * t + jnp.deg2rad(load.phase_deg)
+    return _window(t, load.t_start_s, load.t_end_s) * (load.mean_Nm + load.amplitude_Nm * jnp.sin(w))
+
+
+def span_load_force(load, t):
+    """Magnitude of a [[span_load]] force at time t (N), normal to the installed span."""
+    w = 2 * jnp.pi * load.frequency_hz * t + jnp.deg2rad(load.phase_deg)
+    return _window(t, load.t_start_s, load.t_end_s) * load.amplitude_N * jnp.sin(w)
+
+
+def spring_moment(theta, scene: Scene):
+    """Moment of the tensioner spring on the arm (N m): -k (theta - theta_0)."""
+    t = scene.tensioner
+    return -t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
+
+
+def full_forces(q, q_dot, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, t=None):
+    """Forces on all full coordinates (N, N m) for the listed effects.
+
+    t: time (s) for transients: adds the dissipative effects and the loads; None gives the
+    conservative steady forces of statics and modal analysis.
+    """
+    E, B = split_full(q, scene)
+    Ed, Bd = split_full(q_dot, scene)
+    dyn = t is not None
+    fs = [span_forces(E[s], Ed[s], s, scene, inst, c, c_dot, dissipative=dyn) for s in range(E.shape[0])]
+    if dyn and scene.span_loads:
+        names = span_names(scene)
+        for load in scene.span_loads:
+            s = names.index(load.span)
+            tan = inst.span_tangent[s]
+            normal = jnp.stack([-tan[1], tan[0]])
+            fs[s] = fs[s].at[4 * load.node : 4 * load.node + 2].add(span_load_force(load, t) * normal)
+    return jnp.concatenate(fs + [body_forces(B, scene, inst, Bd, t).reshape(-1)])

@@ -1,0 +1,271 @@
+"""The kinematic map q = Phi(q_i) (the junction structure of the power-port picture): pulley
+centres, span end nodes at their tangent points, body coordinates, span lengths and their
+Jacobian (closed form for the rotational model's bars).  Units: m, rad."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import geometry
+from beltjax.scene import TENSIONER, Scene
+from beltjax.drive.topology import Installation, drive_pulley, flexible, is_free, n_rigid, n_span_coordinates, span_elements, travel_follows_drive
+
+
+def _split(qi, scene: Scene):
+    nr = n_rigid(scene)
+    n = len(scene.route.order)
+    if not flexible(scene):
+        return qi[:nr], None
+    N = scene.model.elements_per_span
+    return qi[:nr], qi[nr:].reshape(n, 4 * N)
+
+
+def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
+    """Pulley rotation perturbations (n,) rad in route order, and the arm angle (rad).
+
+    driven_angle: rotation perturbation of the driven pulleys (rad), a scalar or (n,) in
+    route order (entries of free pulleys ignored).
+    """
+    rigid, _ = _split(qi, scene)
+    free = is_free(scene)
+    driven = jnp.broadcast_to(jnp.asarray(driven_angle, dtype=qi.dtype), (len(free),))
+    k, phis = 0, []
+    for i, f in enumerate(free):
+        if f:
+            phis.append(rigid[k])
+            k += 1
+        else:
+            phis.append(driven[i])
+    theta = inst.arm_angle + (rigid[-1] if scene.tensioner is not None else 0.0)
+    return jnp.stack(phis), theta
+
+
+def belt_travel(scene: Scene, t):
+    """Nominal belt travel x_b(t) (m) along the route, set by the drive pulley's prescribed
+    motion: speed |speed_rpm|, run-up at acceleration_rpm_per_s up to target_speed_rpm, and
+    (``speed_fluctuation``) the harmonic fluctuation R A sin(2 pi f t) of its angle.
+
+    Every pulley rolls with it (angle s_i x_b / R_i) and the belt's transport speed is its
+    rate, so the fluctuation reaches the centrifugal and rhoA dc/dt terms as in the thesis
+    (c = R theta').  Its first and second time derivatives (m/s, m/s^2) come by autodiff.
+    """
+    p = scene.pulley(scene.route.order[drive_pulley(scene)])
+    rpm = 2 * jnp.pi / 60.0
+    w0 = jnp.abs(p.speed_rpm) * rpm
+    a = p.acceleration_rpm_per_s * rpm
+    if p.target_speed_rpm is None:
+        angle = w0 * t + 0.5 * a * t**2
+    else:
+        wT = p.target_speed_rpm * rpm
+        t_star = (wT - w0) / jnp.where(a == 0.0, 1.0, a)
+        tau = jnp.minimum(t, t_star)
+        angle = w0 * tau + 0.5 * a * tau**2 + wT * (t - tau)
+    if scene.model.has("speed_fluctuation"):
+        A = jnp.deg2rad(p.fluctuation_amplitude_deg)
+        angle = angle + A * jnp.sin(2 * jnp.pi * p.fluctuation_frequency_hz * t)
+    return p.radius * angle
+
+
+def n_reaction_points(scene: Scene) -> int:
+    """Bearings whose reactions are reported: one per route entry, plus the arm pivot."""
+    return len(scene.route.order) + (1 if scene.tensioner is not None else 0)
+
+
+def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=None, shift=None):
+    """The kinematic map q = Phi(q_i, t): full coordinates from independent ones.
+
+    qi: independent coordinates (m, rad, -); driven_angle: prescribed rotation
+    perturbation of driven pulleys (rad, scalar or (n,) route order); t: time (s), for
+    transients: each pulley then also turns by its nominal rolling angle
+    s_i x_b(t) / R_i (:func:`belt_travel`, speed fluctuation included), and when the drive
+    pulley is free the belt travels with it (:func:`travel_follows_drive`): every span end
+    slides by its pulley's rim travel less the drive pulley's, s R phi - s_d R_d phi_d, so a
+    free crank may turn any amount; None (statics, modes) leaves both out (there the drive
+    pulley is held, or its rotation is the rigid turn of the loop).  shift: virtual displacement (m) of every
+    bearing, shape (n_reaction_points, 2) (route entries, then the arm pivot), used to
+    compute bearing reactions; None = 0.  Returns the full vector: span coordinates
+    (n spans x 4 (N+1)), then (x, y, angle) per body (m, rad); with ``unbalance`` the
+    (x, y) of a pulley is the centre of mass of the pulley (offset by cm_offset, turning
+    with it) and of its wrapped belt (on the axis).
+    """
+    N = span_elements(scene)
+    _, spans = _split(qi, scene)
+    phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
+    centers, radii = _centers(theta, scene, inst, shift)
+    travel = 0.0
+    if t is not None and travel_follows_drive(scene):  # the belt travels with the free drive pulley
+        d = drive_pulley(scene)
+        travel = scene.route.senses[d] * radii[d] * phi[d]
+    start, end, t_hat = _span_ends(phi, centers, radii, scene, inst, travel)
+    parts = []
+    for s in range(len(scene.route.order)):
+        if spans is None:  # rotational: a bar between the end nodes; slopes are not used
+            slope = inst.stretch * t_hat[s]
+            nodes = jnp.concatenate([start[s], slope, end[s], slope])
+            parts.append(nodes)
+            continue
+        body = spans[s]
+        nodes = jnp.concatenate([start[s], body[:2], body[2:-2], end[s], body[-2:]])
+        parts.append(nodes)
+        assert nodes.shape[0] == 4 * (N + 1)
+    return jnp.concatenate(parts + [_body_coordinates(phi, theta, centers, scene, inst, t, shift)])
+
+
+def _centers(theta, scene: Scene, inst: Installation, shift=None):
+    """Pulley centres (n, 2) m and radii (n,) m in route order at arm angle theta (rad),
+    bearings shifted by ``shift`` (see :func:`full_coordinates`)."""
+    n = len(scene.route.order)
+    if scene.tensioner is not None:
+        centers, radii = scene.layout(theta)
+        if shift is not None:
+            is_idler = jnp.asarray([name == TENSIONER for name in scene.route.order], dtype=centers.dtype)
+            centers = centers + is_idler[:, None] * shift[-1]
+    else:
+        centers, radii = inst.centers, inst.radii
+    if shift is not None:
+        centers = centers + shift[:n]
+    return centers, radii
+
+
+def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0):
+    """Span end nodes (start, end, each (n, 2) m) and span directions (n, 2) of the kinematic
+    map, for pulley rotation perturbations phi (n,) rad, centres (n, 2) m and radii (n,) m
+    (:func:`_centers`); travel: the belt's travel beyond the nominal one (m), taken off every
+    pulley's rim slide (the end nodes sit on the belt's Eulerian mesh, which moves with it).
+    end - start is along the direction: the span's length is (end - start) . t_hat."""
+    n = len(scene.route.order)
+    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
+    nxt = (np.arange(n) + 1) % n
+    if scene.tensioner is None:
+        # fixed centres: the installed tangent points, each end node slid along its span by the
+        # rim travel of its pulley (belt fed into or drawn out of the span)
+        slide = senses * radii * phi - travel  # rim travel of each pulley along the belt (m)
+        t_hat = inst.span_tangent
+        start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
+        end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
+        return start, end, t_hat
+    # the idler moves with the arm: the exact tangent points of the moved layout, and the belt
+    # on each arc, which turns with its pulley, gains s R dpsi where its end point moved by dpsi
+    # (rad, CCW) from the installed one; the end node slides by the rim travel less that
+    # (s R (phi - dpsi)).  Spans and arcs then keep the belt's length exactly as the arm swings
+    # (moving the tangent points rigidly with the centres was exact to first order only).
+    tl, dpsi = _moved_tangents(centers, radii, scene, inst)
+    t_hat = tl.tangent
+    start = tl.start + (senses * radii * (phi - dpsi) - travel)[:, None] * t_hat
+    end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - dpsi) - travel)[:, None] * t_hat
+    return start, end, t_hat
+
+
+def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=None, shift=None):
+    """(x, y, angle) of every body, flattened (m, rad): pulleys in route order, then the arm
+    (see :func:`full_coordinates`)."""
+    order = scene.route.order
+    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
+    angle = phi if t is None else phi + senses * belt_travel(scene, t) / inst.radii
+    unbalance = scene.model.has("unbalance")
+    bodies = []
+    if unbalance:  # the body (x, y) is the centre of mass of pulley + wrapped belt
+        m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
+    for i in range(len(order)):
+        pos = centers[i]
+        if unbalance and order[i] != TENSIONER:
+            p = scene.pulley(order[i])
+            e = p.cm_offset * p.mass / (p.mass + m_arc[i])
+            c, sn = jnp.cos(angle[i]), jnp.sin(angle[i])
+            pos = pos + jnp.stack([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
+        bodies.append(jnp.concatenate([pos, angle[i][None]]))
+    if scene.tensioner is not None:
+        tt = scene.tensioner
+        cm = tt.pivot + tt.arm_cm_distance * jnp.stack([jnp.cos(theta), jnp.sin(theta)])
+        if shift is not None:
+            cm = cm + shift[-1]
+        bodies.append(jnp.concatenate([cm, theta[None]]))
+    return jnp.concatenate(bodies)
+
+
+def _moved_tangents(centers, radii, scene: Scene, inst: Installation):
+    """Tangent lines of the layout with these centres (m) and radii (m), and how far each span's
+    direction turned from the installed one, dpsi (n,) rad CCW.  Both tangent points of a span
+    lie on the normal to its direction, so each turned by dpsi on its pulley."""
+    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
+    tl = geometry.tangent_line(centers, radii, senses, centers[nxt], radii[nxt], senses[nxt])
+    return tl, _turn(inst.span_tangent, tl.tangent)
+
+
+def span_lengths(qi, scene: Scene, inst: Installation):
+    """Stretched span lengths (m), shape (n,): the distance between each span's end nodes in
+    the kinematic map (:func:`full_coordinates`).  The rotational model's spans are bars of
+    these lengths.
+
+    In closed form: l = L + r dpsi + s' R' phi' - s R phi, with L the tangent length of the
+    (moved) layout, r = s R - s' R' the signed radius difference of the span's pulleys (from
+    ``s R`` to ``s' R'``) and dpsi (rad) how far the span's direction turned from the installed
+    one (:func:`_moved_tangents`): the end slides of :func:`_span_ends` are s R (phi - dpsi) and
+    s' R' (phi' - dpsi).
+    """
+    phi, theta = angles_and_arm(qi, scene, inst)
+    centers, radii = _centers(theta, scene, inst)
+    slides = _rim_slides(phi, radii, scene)
+    if scene.tensioner is None:
+        return inst.span_length + slides
+    sr = jnp.asarray(scene.route.senses, dtype=qi.dtype) * radii
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
+    tl, dpsi = _moved_tangents(centers, radii, scene, inst)
+    return tl.length + (sr - sr[nxt]) * dpsi + slides
+
+
+def _rim_slides(phi, radii, scene: Scene):
+    """s' R' phi' - s R phi (m) per span: how much the pulley rotations phi (n,) rad lengthen
+    each span (radii (n,) m, route order)."""
+    sr = jnp.asarray(scene.route.senses, dtype=phi.dtype) * radii
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
+    return sr[nxt] * phi[nxt] - sr * phi
+
+
+def span_lengths_and_jacobian(qi, scene: Scene, inst: Installation):
+    """:func:`span_lengths` (n,) m and their Jacobian dl/dq_i (n, n_i) (m/rad) of the rotational
+    model.
+
+    The rim slides are linear in the pulley angles and the layout moves with the arm angle
+    only, so the Jacobian is the slides' (constant in q_i) plus one column, the derivative along
+    the arm angle: one forward pass (jvp) instead of one per coordinate (jacfwd), which
+    matters in a vector field evaluated tens of thousands of times per simulated second.
+    """
+    if scene.tensioner is None:  # fixed centres: linear in q_i
+        return span_lengths(qi, scene, inst), jax.jacfwd(span_lengths)(qi, scene, inst)
+    e_arm = jnp.zeros_like(qi).at[n_rigid(scene) - 1].set(1.0)  # the arm angle, last rigid coordinate
+    l, dl_arm = jax.jvp(lambda x: span_lengths(x, scene, inst), (qi,), (e_arm,))
+
+    def slides(x):
+        phi, theta = angles_and_arm(x, scene, inst)
+        return _rim_slides(phi, _centers(theta, scene, inst)[1], scene)
+
+    return l, jax.jacfwd(slides)(qi) + dl_arm[:, None] * e_arm[None, :]
+
+
+def _turn(a, b):
+    """Angle (rad, CCW, in (-pi, pi]) from the 2-vectors a to b, row by row."""
+    return jnp.arctan2(geometry._cross(a, b), geometry._dot(a, b))
+
+
+def split_full(q, scene: Scene):
+    """Full vector -> (spans (n, 4 (N+1)), bodies (nb, 3))."""
+    ns = n_span_coordinates(scene)
+    return q[:ns].reshape(len(scene.route.order), -1), q[ns:].reshape(-1, 3)
+
+
+def installed_coordinates(scene: Scene, inst: Installation):
+    """Independent coordinates of the installed drive: straight spans at the installation stretch."""
+    if not flexible(scene):
+        return jnp.zeros(n_rigid(scene))
+    n = len(scene.route.order)
+    N = scene.model.elements_per_span
+    x = jnp.linspace(0.0, 1.0, N + 1)
+    pos = inst.span_start[:, None, :] + x[None, :, None] * (inst.span_end - inst.span_start)[:, None, :]
+    slope = jnp.broadcast_to((inst.stretch * inst.span_tangent)[:, None, :], (n, N + 1, 2))
+    nodes = jnp.concatenate([pos, slope], axis=-1).reshape(n, 4 * (N + 1))
+    spans = jnp.concatenate([nodes[:, 2 : 4 * N], nodes[:, 4 * N + 2 :]], axis=1)  # drop end positions
+    return jnp.concatenate([jnp.zeros(n_rigid(scene)), spans.reshape(-1)])

@@ -1,0 +1,160 @@
+"""The drive's structure: the installation record, spans and bodies, coordinate counts, which
+pulleys are free, the drive pulley and the belt speed (units: SI)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax.ancf import Section
+from beltjax.scene import TENSIONER, Scene
+
+
+GRAVITY = (0.0, -9.81)  # m/s^2
+
+
+class Installation(NamedTuple):
+    """The belt as installed (a pytree of arrays; see :func:`beltjax.statics.install`).
+
+    arm_angle: tensioner arm angle theta_1 (rad; 0 without a tensioner);
+    stretch: uniform stretch lam of the belt at installation (-);
+    tension: installation tension (N); belt_length: unstretched belt length (m);
+    centers (n, 2) m and radii (n,) m in route order; span_start, span_end (n, 2):
+    tangent points (m); span_tangent (n, 2): unit vectors; span_length (n,) m:
+    installed span lengths; wrap (n,) rad.
+    """
+
+    arm_angle: jax.Array
+    stretch: jax.Array
+    tension: jax.Array
+    belt_length: jax.Array
+    centers: jax.Array
+    radii: jax.Array
+    span_start: jax.Array
+    span_end: jax.Array
+    span_tangent: jax.Array
+    span_length: jax.Array
+    wrap: jax.Array
+
+
+def canonical(scene: Scene) -> Scene:
+    """The scene without its file label and description, so that scenes differing only in
+    numbers share one compiled function."""
+    return dataclasses.replace(scene, source="", description="")
+
+
+def span_names(scene: Scene) -> list[str]:
+    """Names of the spans in route order: "<from>-<to>" (span i leaves route entry i)."""
+    return scene.route.span_names
+
+
+def is_free(scene: Scene) -> list[bool]:
+    """Per route entry: whether its rotation is an independent coordinate (not driven)."""
+    return [True if name == TENSIONER else not scene.pulley(name).driven for name in scene.route.order]
+
+
+def flexible(scene: Scene) -> bool:
+    """True for the hybrid ANCF fidelity; False for the rotational (Newton-Euler) one, whose
+    spans are massless axial springs between their end nodes."""
+    return scene.model.fidelity == "ancf"
+
+
+def span_elements(scene: Scene) -> int:
+    """Elements per span in the full coordinates: the mesh (ancf) or 1 (rotational: a bar)."""
+    return scene.model.elements_per_span if flexible(scene) else 1
+
+
+def n_rigid(scene: Scene) -> int:
+    """Number of independent rigid-body coordinates (free pulley angles, arm angle)."""
+    return sum(is_free(scene)) + (1 if scene.tensioner is not None else 0)
+
+
+def n_independent(scene: Scene) -> int:
+    """Number of independent coordinates of the drive."""
+    per_span = 4 * scene.model.elements_per_span if flexible(scene) else 0
+    return n_rigid(scene) + per_span * len(scene.route.order)
+
+
+def n_span_coordinates(scene: Scene) -> int:
+    """Number of span coordinates at the head of the full vector (4 (N+1) per span)."""
+    return len(scene.route.order) * 4 * (span_elements(scene) + 1)
+
+
+def n_full(scene: Scene) -> int:
+    """Number of full coordinates (spans, then 3 per body)."""
+    n = len(scene.route.order)
+    return n_span_coordinates(scene) + 3 * (n + (1 if scene.tensioner is not None else 0))
+
+
+def body_names(scene: Scene) -> list[str]:
+    """Rigid bodies in the order of the full coordinates: route entries, then "tensioner arm"."""
+    names = list(scene.route.order)
+    if scene.tensioner is not None:
+        names.append("tensioner arm")
+    return names
+
+
+def static_dofs(scene: Scene) -> np.ndarray:
+    """Independent coordinates solved for in statics: all but a free drive pulley's angle.
+
+    A drive whose pulleys are all free turns as a rigid body at no cost (zero
+    stiffness); statics holds the drive pulley (its reaction is the drive torque).
+    """
+    k = drive_pulley(scene)
+    free = is_free(scene)
+    dofs = np.arange(n_independent(scene))
+    if free[k]:
+        return np.delete(dofs, sum(free[:k]))
+    return dofs
+
+
+def travel_follows_drive(scene: Scene) -> bool:
+    """Whether a transient's belt travel follows the drive pulley's own rotation: when that
+    pulley is free (no pulley of the route is driven, e.g. a crank turned by a [[torque]]).
+
+    The belt then travels x = x_b(t) + s R phi_d (m: the nominal travel of
+    :func:`belt_travel` plus the drive pulley's rim travel beyond it), its transport speed is
+    c = s R theta_d' / lam, and every span end slides by its pulley's rim travel less x
+    (:func:`full_coordinates`); otherwise x = x_b(t) is prescribed.
+    """
+    return is_free(scene)[drive_pulley(scene)]
+
+
+def travel_coordinate(scene: Scene) -> int:
+    """Position in q_i of the drive pulley's angle when it is free (:func:`travel_follows_drive`)."""
+    d = drive_pulley(scene)
+    return sum(is_free(scene)[:d])
+
+
+def drive_pulley(scene: Scene) -> int:
+    """Route index of the pulley whose speed sets the belt speed.
+
+    The driven pulley (the first one in the file if several), else the first
+    pulley of the file.
+    """
+    order = scene.route.order
+    driven = [p.name for p in scene.pulleys if p.driven and p.name in order]
+    name = driven[0] if driven else next(p.name for p in scene.pulleys if p.name in order)
+    return order.index(name)
+
+
+def belt_speed(scene: Scene, rpm=None):
+    """Belt speed (m/s) at the drive pulley's speed ``rpm`` (default: its speed_rpm)."""
+    p = scene.pulley(scene.route.order[drive_pulley(scene)])
+    rpm = p.speed_rpm if rpm is None else rpm
+    return jnp.abs(rpm) * (2 * jnp.pi / 60.0) * p.radius
+
+
+def section(scene: Scene) -> Section:
+    """The belt section (EA N, EI N m^2, rhoA kg/m)."""
+    b = scene.belt
+    return Section(b.EA, b.EI, b.rhoA)
+
+
+def element_length(scene: Scene, inst: Installation):
+    """Unstretched element length of each span (m), shape (n,)."""
+    return inst.span_length / (inst.stretch * span_elements(scene))

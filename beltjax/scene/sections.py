@@ -1,0 +1,365 @@
+"""Readers of the scene file's tables, one per section ([belt], [[pulley]], [tensioner], [route],
+[model], [[torque]], [[span_load]], [initial], [simulation]): key sets, types and ranges."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import jax.numpy as jnp
+
+from beltjax import schema, tomltable
+from beltjax.ancf import BENDING_MODELS
+from beltjax.tomltable import describe
+from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initial, MAX_ELEMENTS_PER_SPAN, Model, Pulley, Route, SOLVERS, Scene, SceneError, Simulation, SpanLoad, TENSIONER, Tensioner, Torque
+
+
+def _fail(key, msg, source=""):
+    raise SceneError(f"{key}: {msg}", key, source)
+
+
+def _table(data, key: str, source: str, allowed: tuple[str, ...]) -> tomltable.Table:
+    """A scene table being read (errors: :class:`SceneError` naming ``source``)."""
+    return tomltable.Reader(functools.partial(_fail, source=source)).table(data, key, allowed)
+
+
+def _arr(x):
+    return None if x is None else jnp.asarray(x, dtype=jnp.float64)
+
+
+_num = schema.read_number
+
+
+_vec = schema.read_vector
+
+
+_TOP_KEYS = (
+    "description", "belt", "pulley", "tensioner", "route", "model", "torque", "span_load", "initial", "simulation"
+)
+
+
+_BELT_KEYS = ("EA", "EI", "rhoA", "static_tension", "length", "CA")
+
+
+_PULLEY_KEYS = (
+    "name",
+    "center",
+    "radius",
+    "mass",
+    "inertia",
+    "driven",
+    "speed_rpm",
+    "acceleration_rpm_per_s",
+    "fluctuation_amplitude_deg",
+    "fluctuation_frequency_hz",
+    "cm_offset",
+    "bearing_damping",
+    "target_speed_rpm",
+)
+
+
+_DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "target_speed_rpm")
+
+
+_TORQUE_KEYS = ("pulley", "mean_Nm", "amplitude_Nm", "frequency_hz", "phase_deg", "t_start_s", "t_end_s")
+
+
+_SPAN_LOAD_KEYS = ("span", "node", "amplitude_N", "frequency_hz", "phase_deg", "t_start_s", "t_end_s")
+
+
+_INITIAL_KEYS = ("rotation_deg", "arm_angle_deg")
+
+
+_SIMULATION_KEYS = ("solver", "dt_s", "rho_inf", "rtol", "atol", "output_dt_s", "nodes", "max_steps")
+
+
+#: effect -> (what it needs, how to tell that the scene gives it)
+_EFFECT_PARAMETERS = {
+    "belt_damping": "belt.CA",
+    "bearing_damping": "pulley[i].bearing_damping",
+    "tensioner_damping": "tensioner.damping",
+    "unbalance": "pulley[i].cm_offset",
+    "speed_fluctuation": "pulley[i].fluctuation_amplitude_deg",
+}
+
+
+_TENSIONER_KEYS = (
+    "pivot",
+    "arm_length",
+    "pulley_radius",
+    "arm_mass",
+    "arm_inertia",
+    "pulley_mass",
+    "pulley_inertia",
+    "spring_stiffness",
+    "spring_preload_deg",
+    "arm_angle_deg",
+    "arm_cm_distance",
+    "damping",
+)
+
+
+_ROUTE_KEYS = ("order", "back_side", "direction")
+
+
+_MODEL_KEYS = ("fidelity", "elements_per_span", "effects", "bending")
+
+
+def _parse_belt(data, source) -> Belt:
+    t = _table(data, "belt", source, _BELT_KEYS)
+    EA = _num(t, "EA", "belt")
+    EI = _num(t, "EI", "belt")
+    rhoA = _num(t, "rhoA", "belt")
+    if t.has("static_tension") == t.has("length"):
+        _fail("belt", "give exactly one of static_tension and length", source)
+    T = _num(t, "static_tension", "belt", required=False)
+    L = _num(t, "length", "belt", required=False)
+    CA = _num(t, "CA", "belt", required=False, default=0.0)
+    return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA))
+
+
+def _parse_pulley(data, i, source) -> Pulley:
+    t = _table(data, f"pulley[{i}]", source, _PULLEY_KEYS)
+    name = t.string("name")
+    if not name.strip():
+        t.fail("name", "must not be empty")
+    if name == TENSIONER:
+        t.fail("name", f"{TENSIONER!r} is reserved for the [tensioner] idler")
+    center = _vec(t, "center", "pulley")
+    radius = _num(t, "radius", "pulley")
+    mass = _num(t, "mass", "pulley")
+    inertia = _num(t, "inertia", "pulley")
+    driven = t.boolean("driven")
+    if not driven:
+        for k in _DRIVEN_ONLY:
+            if t.has(k):
+                t.fail(k, "only a driven pulley (driven = true) takes a prescribed motion")
+    speed = _num(t, "speed_rpm", "pulley", required=False, default=0.0)
+    accel = _num(t, "acceleration_rpm_per_s", "pulley", required=False, default=0.0)
+    amp = _num(t, "fluctuation_amplitude_deg", "pulley", required=False, default=0.0)
+    freq = _num(t, "fluctuation_frequency_hz", "pulley", required=False, default=0.0)
+    cm = _vec(t, "cm_offset", "pulley", required=False, default=[0.0, 0.0])
+    if math.hypot(*cm) >= radius:
+        t.fail("cm_offset", f"offset {math.hypot(*cm)!r} m must be smaller than the radius {radius!r} m")
+    bd = _num(t, "bearing_damping", "pulley", required=False, default=0.0)
+    target = _num(t, "target_speed_rpm", "pulley", required=False)
+    if target is not None:
+        if accel == 0.0:
+            t.fail("target_speed_rpm", "needs acceleration_rpm_per_s (a run-up) to reach it")
+        if (target - abs(speed)) * accel <= 0.0:
+            t.fail(
+                "target_speed_rpm",
+                f"{target!r} rpm cannot be reached from {abs(speed)!r} rpm with acceleration {accel!r} rpm/s",
+            )
+    if amp > 0.0 and freq == 0.0:
+        t.fail("fluctuation_frequency_hz", "missing (required with fluctuation_amplitude_deg > 0)")
+    return Pulley(
+        name=name,
+        center=_arr(center),
+        radius=_arr(radius),
+        mass=_arr(mass),
+        inertia=_arr(inertia),
+        driven=driven,
+        speed_rpm=_arr(speed),
+        acceleration_rpm_per_s=_arr(accel),
+        fluctuation_amplitude_deg=_arr(amp),
+        fluctuation_frequency_hz=_arr(freq),
+        cm_offset=_arr(cm),
+        bearing_damping=_arr(bd),
+        target_speed_rpm=_arr(target),
+    )
+
+
+def _parse_tensioner(data, source) -> Tensioner:
+    t = _table(data, "tensioner", source, _TENSIONER_KEYS)
+    arm_length = _num(t, "arm_length", "tensioner")
+    vals = dict(
+        pivot=_arr(_vec(t, "pivot", "tensioner")),
+        arm_length=_arr(arm_length),
+        pulley_radius=_arr(_num(t, "pulley_radius", "tensioner")),
+        arm_mass=_arr(_num(t, "arm_mass", "tensioner")),
+        arm_inertia=_arr(_num(t, "arm_inertia", "tensioner")),
+        pulley_mass=_arr(_num(t, "pulley_mass", "tensioner")),
+        pulley_inertia=_arr(_num(t, "pulley_inertia", "tensioner")),
+        spring_stiffness=_arr(_num(t, "spring_stiffness", "tensioner")),
+        spring_preload_deg=_arr(_num(t, "spring_preload_deg", "tensioner")),
+        arm_angle_deg=_arr(_num(t, "arm_angle_deg", "tensioner", required=False)),
+        damping=_arr(_num(t, "damping", "tensioner", required=False, default=0.0)),
+    )
+    cm = _num(t, "arm_cm_distance", "tensioner", required=False, default=0.0)
+    if cm > arm_length:
+        t.fail("arm_cm_distance", f"must not exceed arm_length = {arm_length!r}, got {cm!r}")
+    vals["arm_cm_distance"] = _arr(cm)
+    return Tensioner(**vals)
+
+
+def _parse_route(data, names, has_tensioner, source) -> Route:
+    t = _table(data, "route", source, _ROUTE_KEYS)
+    order = t.strings("order")
+    if len(order) < 2:
+        t.fail("order", f"a belt needs at least two pulleys in its route, got {order!r}")
+    known = set(names) | ({TENSIONER} if has_tensioner else set())
+    for x in order:
+        if x == TENSIONER and not has_tensioner:
+            t.fail("order", f"{TENSIONER!r} is in the route but there is no [tensioner] table")
+        if x not in known:
+            t.fail("order", f"unknown pulley {x!r} (known: {', '.join(sorted(known))})")
+    for x in names:
+        if x not in order:
+            t.fail("order", f"pulley {x!r} is not in the route")
+    if has_tensioner and TENSIONER not in order:
+        t.fail("order", f"a [tensioner] table is given but {TENSIONER!r} is not in the route")
+    back = t.strings("back_side", required=False, default=[])
+    for x in back:
+        if x not in order:
+            t.fail("back_side", f"{x!r} is not in route.order")
+    direction = t.string("direction", required=False, default="cw", choices=DIRECTIONS)
+    return Route(order=tuple(order), back_side=tuple(back), direction=direction)
+
+
+def _parse_model(data, source) -> Model:
+    t = _table(data, "model", source, _MODEL_KEYS)
+    fidelity = t.string("fidelity", required=False, default="ancf", choices=FIDELITIES)
+    n = t.integer("elements_per_span", required=False, default=16, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN)
+    effects = t.strings("effects", required=False, default=[])
+    for e in effects:
+        if e not in EFFECTS:
+            t.fail("effects", f"unknown effect {e!r} (known: {', '.join(EFFECTS)})")
+    bending = t.string("bending", required=False, default="linear", choices=BENDING_MODELS)
+    return Model(fidelity=fidelity, elements_per_span=n, effects=tuple(effects), bending=bending)
+
+
+def _window(t, group):
+    t0 = _num(t, "t_start_s", group, required=False, default=0.0)
+    t1 = _num(t, "t_end_s", group, required=False)
+    if t1 is not None and t1 <= t0:
+        t.fail("t_end_s", f"must be later than t_start_s = {t0!r}, got {t1!r}")
+    return _arr(t0), _arr(t1)
+
+
+def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
+    if TENSIONER in free_names:
+        free_names = [*free_names, ARM]
+    if not isinstance(data, list):
+        _fail("torque", f"expected an array of tables [[torque]], got {describe(data)}", source)
+    out = []
+    for i, d in enumerate(data):
+        t = _table(d, f"torque[{i}]", source, _TORQUE_KEYS)
+        name = t.string("pulley")
+        if name not in free_names:
+            t.fail(
+                "pulley",
+                f"{name!r} is not a free pulley of the route (free: {', '.join(free_names) or 'none'}; "
+                "a driven pulley's motion is prescribed)",
+            )
+        t0, t1 = _window(t, "torque")
+        out.append(
+            Torque(
+                pulley=name,
+                mean_Nm=_arr(_num(t, "mean_Nm", "torque", required=False, default=0.0)),
+                amplitude_Nm=_arr(_num(t, "amplitude_Nm", "torque", required=False, default=0.0)),
+                frequency_hz=_arr(_num(t, "frequency_hz", "torque", required=False, default=0.0)),
+                phase_deg=_arr(_num(t, "phase_deg", "torque", required=False, default=0.0)),
+                t_start_s=t0,
+                t_end_s=t1,
+            )
+        )
+    return tuple(out)
+
+
+def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLoad, ...]:
+    if not isinstance(data, list):
+        _fail("span_load", f"expected an array of tables [[span_load]], got {describe(data)}", source)
+    out = []
+    for i, d in enumerate(data):
+        t = _table(d, f"span_load[{i}]", source, _SPAN_LOAD_KEYS)
+        if fidelity != "ancf":
+            t.fail("span", "a span load needs the hybrid model (model.fidelity = \"ancf\"): "
+                   "the rotational model has no span nodes")
+        name = t.string("span")
+        if name not in spans:
+            t.fail("span", f"unknown span {name!r} (spans: {', '.join(spans)})")
+        node = t.integer("node")
+        if not 1 <= node <= n_elements - 1:
+            t.fail("node", f"must be an interior node, 1 to {n_elements - 1} (elements_per_span - 1), got {node!r}")
+        t0, t1 = _window(t, "span_load")
+        out.append(
+            SpanLoad(
+                span=name,
+                node=node,
+                amplitude_N=_arr(_num(t, "amplitude_N", "span_load")),
+                frequency_hz=_arr(_num(t, "frequency_hz", "span_load")),
+                phase_deg=_arr(_num(t, "phase_deg", "span_load", required=False, default=0.0)),
+                t_start_s=t0,
+                t_end_s=t1,
+            )
+        )
+    return tuple(out)
+
+
+def _parse_initial(data, free_names, has_tensioner, source) -> Initial:
+    t = _table(data, "initial", source, _INITIAL_KEYS)
+    rot = t.raw("rotation_deg", False) or {}
+    if not isinstance(rot, dict):
+        t.fail("rotation_deg", f"expected a table of pulley = angle (deg), got {describe(rot)}")
+    pairs = []
+    for name, v in rot.items():
+        if name not in free_names:
+            _fail(
+                f"initial.rotation_deg.{name}",
+                f"not a free pulley of the route (free: {', '.join(free_names) or 'none'})",
+                source,
+            )
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            _fail(f"initial.rotation_deg.{name}", f"expected a finite number (deg), got {describe(v)}", source)
+        msg = schema.problem(schema.FIELDS["initial.rotation_deg"], v)
+        if msg:
+            _fail(f"initial.rotation_deg.{name}", msg, source)
+        pairs.append((name, float(v)))
+    arm = _num(t, "arm_angle_deg", "initial", required=False)
+    if arm is not None and not has_tensioner:
+        t.fail("arm_angle_deg", "there is no [tensioner]")
+    return Initial(rotation_deg=tuple(pairs), arm_angle_deg=arm)
+
+
+def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
+    t = _table(data, "simulation", source, _SIMULATION_KEYS)
+    solver = t.string("solver", required=False, default=None, choices=SOLVERS)
+    dt = _num(t, "dt_s", "simulation", required=False)
+    rho = _num(t, "rho_inf", "simulation", required=False, default=0.9)
+    rtol = _num(t, "rtol", "simulation", required=False, default=1e-6)
+    atol = _num(t, "atol", "simulation", required=False, default=1e-9)
+    out_dt = _num(t, "output_dt_s", "simulation", required=False)
+    nodes = t.strings("nodes", required=False)
+    if nodes is not None:
+        if fidelity != "ancf" and nodes:
+            t.fail("nodes", "node outputs need the hybrid model (model.fidelity = \"ancf\")")
+        for x in nodes:
+            name, _, k = x.rpartition(":")
+            if name not in spans or not k.isdigit() or not 0 <= int(k) <= n_elements:
+                t.fail("nodes", f"{x!r} is not \"<span>:<node>\" with a span of {', '.join(spans)} "
+                       f"and a node 0 to {n_elements}")
+        nodes = tuple(nodes)
+    max_steps = t.integer("max_steps", required=False, default=1_000_000, minimum=1)
+    return Simulation(solver=solver, dt_s=dt, rho_inf=rho, rtol=rtol, atol=atol, output_dt_s=out_dt,
+                      nodes=nodes, max_steps=max_steps)
+
+
+def _check_effects(scene: Scene, source: str):
+    """A parameter of an effect that is not switched on is an error, not silently ignored."""
+    model = scene.model
+    if float(scene.belt.CA) > 0 and not model.has("belt_damping"):
+        _fail("belt.CA", "given but \"belt_damping\" is not in model.effects", source)
+    if scene.tensioner is not None and float(scene.tensioner.damping) > 0 and not model.has("tensioner_damping"):
+        _fail("tensioner.damping", "given but \"tensioner_damping\" is not in model.effects", source)
+    for i, p in enumerate(scene.pulleys):
+        if float(p.bearing_damping) > 0 and not model.has("bearing_damping"):
+            _fail(f"pulley[{i}].bearing_damping", "given but \"bearing_damping\" is not in model.effects", source)
+        if float(jnp.linalg.norm(p.cm_offset)) > 0 and not model.has("unbalance"):
+            _fail(f"pulley[{i}].cm_offset", "given but \"unbalance\" is not in model.effects", source)
+        if float(p.fluctuation_amplitude_deg) > 0 and not model.has("speed_fluctuation"):
+            _fail(
+                f"pulley[{i}].fluctuation_amplitude_deg",
+                "given but \"speed_fluctuation\" is not in model.effects",
+                source,
+            )

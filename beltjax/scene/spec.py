@@ -1,0 +1,260 @@
+"""The scene as pytrees (equinox modules): belt, pulleys, tensioner, route, model, loads, initial
+state and run settings; the reserved names and the choices a scene file may make."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import geometry
+from beltjax.errors import BeltjaxError
+
+
+#: effects a scene may ask for in ``model.effects`` (only listed ones are simulated)
+EFFECTS = (
+    "transport",  # axially moving belt: gyroscopic + centrifugal terms
+    "gravity",  # weight of belt, pulleys and tensioner
+    "belt_damping",  # viscous axial damping of the belt (belt.CA)
+    "bearing_damping",  # viscous damping at pulley bearings (pulley.bearing_damping)
+    "tensioner_damping",  # viscous damping at the tensioner pivot (tensioner.damping)
+    "unbalance",  # pulley centre-of-mass offsets (pulley.cm_offset)
+    "speed_fluctuation",  # harmonic fluctuation of a driven pulley's angle
+)
+
+
+FIDELITIES = ("ancf", "rotational")
+
+
+#: transient solvers (see beltjax.transient)
+SOLVERS = ("generalized_alpha", "tsit5", "dopri8", "kvaerno5")
+
+
+DIRECTIONS = geometry.DIRECTIONS
+
+
+TENSIONER = "tensioner"  # the idler's name in route.order (reserved)
+
+
+#: most ANCF elements per span (as ``beltjax span --elements``): more only exhausts memory
+MAX_ELEMENTS_PER_SPAN = 400
+
+
+ARM = "tensioner_arm"  # a [[torque]] on the tensioner's arm (about its pivot)
+
+
+class SceneError(BeltjaxError):
+    """Invalid scene: one-line message starting with the key path (``key`` attribute)."""
+
+    def __init__(self, message: str, key: str = "", source: str = ""):
+        super().__init__(message)
+        self.key = key
+        self.source = source
+
+
+class Belt(eqx.Module):
+    """Belt section and installation (float64 array leaves).
+
+    EA (N), EI (N m^2), rhoA (kg/m), CA (N s); exactly one of static_tension (N)
+    and length (unstretched belt length, m) is an array, the other None.
+    """
+
+    EA: jax.Array
+    EI: jax.Array
+    rhoA: jax.Array
+    static_tension: jax.Array | None
+    length: jax.Array | None
+    CA: jax.Array
+
+
+class Pulley(eqx.Module):
+    """A pulley on a fixed bearing.
+
+    center (2,) m, radius m, mass kg, inertia kg m^2, speed_rpm rpm,
+    acceleration_rpm_per_s rpm/s, fluctuation_amplitude_deg deg,
+    fluctuation_frequency_hz Hz, cm_offset (2,) m, bearing_damping N m s/rad,
+    target_speed_rpm rpm (the run-up's end speed) or None.
+    """
+
+    name: str = eqx.field(static=True)
+    center: jax.Array
+    radius: jax.Array
+    mass: jax.Array
+    inertia: jax.Array
+    driven: bool = eqx.field(static=True)
+    speed_rpm: jax.Array
+    acceleration_rpm_per_s: jax.Array
+    fluctuation_amplitude_deg: jax.Array
+    fluctuation_frequency_hz: jax.Array
+    cm_offset: jax.Array
+    bearing_damping: jax.Array
+    target_speed_rpm: jax.Array | None = None
+
+
+class Tensioner(eqx.Module):
+    """Automatic tensioner: an arm on a pivot carrying an idler.
+
+    pivot (2,) m, arm_length m, pulley_radius m, arm_mass kg, arm_inertia kg m^2
+    (about the arm's centre of mass), pulley_mass kg, pulley_inertia kg m^2,
+    spring_stiffness N m/rad, spring_preload_deg deg, arm_angle_deg deg or None,
+    arm_cm_distance m, damping N m s/rad.
+    """
+
+    pivot: jax.Array
+    arm_length: jax.Array
+    pulley_radius: jax.Array
+    arm_mass: jax.Array
+    arm_inertia: jax.Array
+    pulley_mass: jax.Array
+    pulley_inertia: jax.Array
+    spring_stiffness: jax.Array
+    spring_preload_deg: jax.Array
+    arm_angle_deg: jax.Array | None
+    arm_cm_distance: jax.Array
+    damping: jax.Array
+
+    def idler_center(self, theta):
+        """Idler centre (m), shape (2,), at arm angle theta (rad, CCW from +x)."""
+        return geometry.tensioner_idler_center(self.pivot, self.arm_length, theta)
+
+
+class Route(eqx.Module):
+    """Belt route (static): order of travel, back-side pulleys, wrap direction."""
+
+    order: tuple[str, ...] = eqx.field(static=True)
+    back_side: tuple[str, ...] = eqx.field(static=True)
+    direction: str = eqx.field(static=True)
+
+    @property
+    def span_names(self) -> list[str]:
+        """Names of the spans in route order: "<from>-<to>" (span i leaves entry i)."""
+        n = len(self.order)
+        return [f"{self.order[i]}-{self.order[(i + 1) % n]}" for i in range(n)]
+
+    @property
+    def senses(self) -> np.ndarray:
+        """Wrap sense per route entry: +1 CCW, -1 CW (numpy ints)."""
+        return geometry.wrap_senses(self.order, self.back_side, self.direction)
+
+
+class Model(eqx.Module):
+    """Model choices (static)."""
+
+    fidelity: str = eqx.field(static=True)
+    elements_per_span: int = eqx.field(static=True)
+    effects: tuple[str, ...] = eqx.field(static=True)
+    bending: str = eqx.field(static=True)
+
+    def has(self, effect: str) -> bool:
+        """Whether ``effect`` (one of :data:`EFFECTS`) is switched on."""
+        if effect not in EFFECTS:
+            raise ValueError(f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
+        return effect in self.effects
+
+
+class Torque(eqx.Module):
+    """A moment on a free pulley (N m, CCW positive) in a time window.
+
+    M(t) = mean_Nm + amplitude_Nm sin(2 pi frequency_hz t + phase) for
+    t_start_s <= t < t_end_s (s; t_end_s None = to the end), else 0.
+    """
+
+    pulley: str = eqx.field(static=True)
+    mean_Nm: jax.Array
+    amplitude_Nm: jax.Array
+    frequency_hz: jax.Array
+    phase_deg: jax.Array
+    t_start_s: jax.Array
+    t_end_s: jax.Array | None
+
+
+class SpanLoad(eqx.Module):
+    """A harmonic force (N) on an interior node of a span, normal to the installed span
+    (positive to the left of the belt's travel): F(t) = amplitude_N sin(2 pi frequency_hz t
+    + phase) for t_start_s <= t < t_end_s (s)."""
+
+    span: str = eqx.field(static=True)
+    node: int = eqx.field(static=True)
+    amplitude_N: jax.Array
+    frequency_hz: jax.Array
+    phase_deg: jax.Array
+    t_start_s: jax.Array
+    t_end_s: jax.Array | None
+
+
+class Initial(eqx.Module):
+    """Initial state of a transient, as a change from the static equilibrium: rotation_deg
+    maps free pulleys to an added rotation (deg, CCW); arm_angle_deg is the tensioner arm's
+    absolute initial angle (deg) or None.  The spans start straight between their moved ends."""
+
+    rotation_deg: tuple[tuple[str, float], ...] = eqx.field(static=True, default=())
+    arm_angle_deg: float | None = eqx.field(static=True, default=None)
+
+
+class Simulation(eqx.Module):
+    """Transient settings (static): solver name (None: :func:`beltjax.transient.default_solver`,
+    by fidelity), step dt_s (s; fixed-step solvers and the first
+    step of adaptive ones), rho_inf (generalized-alpha), rtol/atol (adaptive solvers),
+    output_dt_s (s), output nodes ("<span>:<node>"; default each span's middle node),
+    max_steps (adaptive solvers)."""
+
+    solver: str | None = eqx.field(static=True, default=None)
+    dt_s: float | None = eqx.field(static=True, default=None)
+    rho_inf: float = eqx.field(static=True, default=0.9)
+    rtol: float = eqx.field(static=True, default=1e-6)
+    atol: float = eqx.field(static=True, default=1e-9)
+    output_dt_s: float | None = eqx.field(static=True, default=None)
+    nodes: tuple[str, ...] | None = eqx.field(static=True, default=None)
+    max_steps: int = eqx.field(static=True, default=1_000_000)
+
+
+class Scene(eqx.Module):
+    """A validated drive: belt, pulleys (file order), optional tensioner, route, model."""
+
+    belt: Belt
+    pulleys: tuple[Pulley, ...]
+    tensioner: Tensioner | None
+    route: Route
+    model: Model
+    source: str = eqx.field(static=True, default="<dict>")
+    description: str = eqx.field(static=True, default="")
+    torques: tuple[Torque, ...] = ()
+    span_loads: tuple[SpanLoad, ...] = ()
+    initial: Initial = Initial()
+    simulation: Simulation = Simulation()
+
+    def pulley(self, name: str) -> Pulley:
+        """The pulley called ``name`` (KeyError if none)."""
+        for p in self.pulleys:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    def layout(self, arm_angle=None):
+        """Centres (n, 2) m and radii (n,) m in route order (differentiable).
+
+        arm_angle: tensioner arm angle (rad, CCW from +x); None uses
+        ``tensioner.arm_angle_deg`` (ValueError if that is not given either).
+        Ignored without a tensioner.
+        """
+        centers, radii = [], []
+        for name in self.route.order:
+            if name == TENSIONER:
+                t = self.tensioner
+                if arm_angle is None:
+                    if t.arm_angle_deg is None:
+                        raise ValueError("tensioner.arm_angle_deg: not given; pass arm_angle (rad)")
+                    arm_angle = jnp.deg2rad(t.arm_angle_deg)
+                centers.append(t.idler_center(arm_angle))
+                radii.append(t.pulley_radius)
+            else:
+                p = self.pulley(name)
+                centers.append(p.center)
+                radii.append(p.radius)
+        return jnp.stack(centers), jnp.stack(radii)
+
+    def geometry(self, arm_angle=None, *, check: bool = True) -> geometry.DriveGeometry:
+        """Belt path (:class:`beltjax.geometry.DriveGeometry`) at arm angle ``arm_angle`` (rad)."""
+        centers, radii = self.layout(arm_angle)
+        return geometry.drive_geometry(centers, radii, self.route.senses, names=self.route.order, check=check)

@@ -1,0 +1,350 @@
+"""The batched evaluation of a sweep's cases: one compiled, vmapped function run in padded chunks
+(local devices), with the statics retry and the checks of each case's solved installation."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import critical, drive, drive_modal, mode_tracking, parameters, statics, sweep_modes, validate
+from beltjax.scene import Scene
+from beltjax.sweep.spec import CAMPBELL_CHUNK_POINTS, MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
+
+
+@dataclasses.dataclass(frozen=True)
+class _Options:
+    """Static options of the compiled batch (hashable)."""
+
+    outputs: tuple[str, ...]
+    modes: int
+    gyro: bool
+    steps: int = 1
+    track: int = 0
+
+def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] = ("statics", "modal"),
+                 modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1,
+                 track: int = 0) -> dict[str, jax.Array]:
+    """Outputs of one case: ``scene`` with ``values`` {path: scalar} set (pure JAX: jit, vmap, grad).
+
+    outputs, modes, gyroscopic (solve the gyroscopic problem of the moving belt) and steps
+    (speed steps of the statics) are static.  Returns the arrays of :func:`evaluate` for one
+    case (no ``status``): an integer ``code`` (index into :data:`STATUS`) and, per output,
+    span_tensions_N (N), hub_forces_N (N, magnitudes), installation_tension_N (N),
+    belt_length_m (m), tensioner_angle_deg (deg), spring_moment_Nm (N m), converged;
+    frequencies_hz (Hz, NaN when unstable), stable; campbell_hz (Hz, per ``rpm`` speed),
+    campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt).  With
+    ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
+    tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
+    campbell_owner (the frequencies are then the lowest ``track``, sorted).
+    """
+    sc = parameters.set_values(scene, values)
+    inst = statics.install(sc)
+    v = drive.belt_speed(sc)
+    qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps)
+    out = statics.static_outputs(sc, qi, inst, v)
+    lam = inst.stretch
+    conds = [~jnp.isfinite(lam) | (lam <= 1.0), lam - 1.0 > statics.MAX_INSTALL_STRAIN]
+    codes = [_CODE["belt_slack"], _CODE["belt_overstretched"]]
+    if sc.tensioner is not None:
+        conds.insert(0, ~jnp.isfinite(inst.arm_angle))
+        codes.insert(0, _CODE["no_arm_balance"])
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
+    codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
+    res: dict[str, jax.Array] = {}
+    if "statics" in outputs:
+        res["span_tensions_N"] = out["tensions"]
+        res["hub_forces_N"] = jnp.linalg.norm(out["hubs"], axis=1)
+        res["belt_length_m"] = inst.belt_length
+        if sc.tensioner is not None:
+            res["spring_moment_Nm"] = drive.spring_moment(out["theta"], sc)
+        res["converged"] = conv > 0.5
+    res["installation_tension_N"] = inst.tension  # evaluate checks each case's solved installation
+    if sc.tensioner is not None:
+        res["tensioner_angle_deg"] = jnp.rad2deg(out["theta"])
+    nr = drive_modal.n_rigid_modes(sc)
+    stable = jnp.asarray(True)
+    if "modal" in outputs:
+        if track:
+            t = drive_modal.tracking_shapes(sc, qi, inst, v, track, gyroscopic, full=False)
+            stable, f = t["stable"], t["freqs"]
+            res["modal_W"], res["modal_owner"] = t["W"], t["owner"]
+        else:
+            M, G, K = drive_modal.linearise(qi, sc, inst, v)
+            stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
+            f = f[:modes]
+        res["frequencies_hz"] = jnp.where(stable, f, jnp.nan)
+        res["stable"] = stable
+    if "campbell" in outputs:
+        transport = sc.model.has("transport")
+
+        def at(r):
+            vv = drive.belt_speed(sc, r)
+            q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=4)
+            if track:
+                t = drive_modal.tracking_shapes(sc, q2, inst2, vv, track, transport, full=False)
+                ok = t["stable"] & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
+                return jnp.where(ok, t["freqs"], jnp.nan), ok, t["W"], t["owner"]
+            M, G, K = drive_modal.linearise(q2, sc, inst2, vv)
+            ok, f = drive_modal.frequencies_from_matrices(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
+            ok = ok & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
+            return jnp.where(ok, f[:modes], jnp.nan), ok
+
+        got = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
+        res["campbell_hz"], res["campbell_stable"] = got[:2]
+        if track:
+            res["campbell_W"], res["campbell_owner"] = got[2:]
+    skip = ("frequencies_hz", "campbell_hz", *sweep_modes.SHAPE_KEYS)
+    finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in skip]
+    conds += [~jnp.all(jnp.asarray([*finite, True])), ~stable]
+    codes += [_CODE["non_finite"], _CODE["unstable"]]
+    res["code"] = jnp.select(conds, [jnp.asarray(c) for c in codes], jnp.asarray(_CODE["ok"]))
+    return res
+
+def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options) -> dict:
+    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track)
+
+def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` completed with the scene's value of every other scalar parameter
+    (:func:`beltjax.parameters.paths`; the belt by the key the sweep or the scene uses).
+
+    A batch over the complete set has one pytree structure for every sweep of a scene, so
+    all sweeps of a scene (and of scenes of the same structure) share one compilation.
+    """
+    belt = scene.belt
+    if "belt.length" in values or ("belt.static_tension" not in values and belt.length is not None):
+        skip = "belt.static_tension"
+    else:
+        skip = "belt.length"
+    out: dict[str, Any] = {}
+    for p in parameters.paths(scene):
+        if p == skip or p in values:
+            continue
+        try:
+            x = parameters.get_value(scene, p)
+        except parameters.ParameterError:
+            continue
+        if p in ("belt.length", "belt.static_tension") and getattr(belt, p.split(".")[1]) is None:
+            continue  # not given: solved by the installation
+        out[p] = float(x)
+    out.update(values)
+    return out
+
+@functools.cache
+def _batch_fn(opts: _Options, devices: tuple | None, keys: tuple[str, ...]) -> Callable:
+    """The jitted batch ``(scene, X (B, len(keys)), rpm (S,)) -> outputs (B, ...)``, column j of X
+    the values of parameter ``keys[j]``; sharded over ``devices`` (shard_map on the case axis)
+    when given.  One per option set and parameter set, shared by all sweeps."""
+
+    def batch(scene, X, rpm):
+        return jax.vmap(lambda x: _case(scene, dict(zip(keys, x)), rpm, opts))(X)
+
+    if devices is None:
+        return jax.jit(batch)
+    from jax.sharding import Mesh
+    from jax.sharding import PartitionSpec as P
+
+    mesh = Mesh(np.asarray(devices), ("cases",))
+    return jax.jit(jax.shard_map(batch, mesh=mesh, in_specs=(P(), P("cases"), P()), out_specs=P("cases"),
+                                 check_vma=False))
+
+def _devices(devices="auto") -> tuple | None:
+    """Devices to shard a batch over (None: no sharding).  "auto": every local device when there
+    are several accelerators (GPU/TPU).  Several CPU "devices" (``--xla_force_host_platform_device_count``)
+    share the same cores, and XLA's CPU runtime wedged here (all threads idle) running the batched
+    eigen-solves on two of them, so CPU devices are used only when passed explicitly."""
+    if devices is None:
+        return None
+    if isinstance(devices, str):
+        if devices != "auto":
+            raise SweepError("devices", f"\"auto\", None or a sequence of JAX devices, got {devices!r}")
+        devs = jax.local_devices()
+        return tuple(devs) if len(devs) > 1 and devs[0].platform != "cpu" else None
+    devs = tuple(devices)
+    return devs if len(devs) > 1 else None
+
+def default_chunk(devices: tuple | None = None) -> int:
+    """Default cases per compiled batch: 1 per CPU device, 128 on accelerators.
+
+    On CPU a batch is slower per case than one case at a time: the batched arrays leave the
+    cache (each fused operation streams over the whole batch) and batched LAPACK calls are
+    loops; a vmapped Newton also iterates until its slowest case converges.  Two-pulley bench
+    (130 coordinates), statics + modes, interleaved on the shared 2-core machine: 4.2-5.1 ms
+    per case in batches of 1, 3.9-8.9 ms of 2, 6-11 ms of 4, 13-19 ms of 8 and 13-20 ms of 32,
+    against 5.0-5.5 ms for the jitted single case (benchmarks/bench_sweep.py).  A batch pays
+    on GPUs (128 there is a guess, not measured).
+    """
+    devs = devices or tuple(jax.local_devices()[:1])
+    return len(devs) if devs[0].platform == "cpu" else 128 * len(devs)
+
+def _chunk_size(n: int, chunk: int | None, n_rpm: int, devices: tuple | None) -> int:
+    """Cases per compiled batch: ``chunk`` (fewer for campbell, to bound memory), at most the
+    cases rounded up to 8 (few shapes), a multiple of the device count."""
+    n_dev = len(devices) if devices else 1
+    chunk = default_chunk(devices) if chunk is None else chunk
+    size = chunk if n_rpm == 0 else max(1, min(chunk, CAMPBELL_CHUNK_POINTS // n_rpm))
+    size = min(size, 8 * math.ceil(n / 8))
+    return n_dev * math.ceil(size / n_dev)
+
+def _matrix(values: Mapping[str, np.ndarray], keys: tuple[str, ...], size: int) -> np.ndarray:
+    """(size, len(keys)) float64 values, the last case repeated to pad to ``size`` rows."""
+    X = np.stack([np.asarray(values[k], dtype=float) for k in keys], axis=1)
+    return np.concatenate([X, np.repeat(X[-1:], size - len(X), axis=0)]) if len(X) < size else X
+
+def _run_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options,
+               size: int, devices: tuple | None) -> dict[str, np.ndarray]:
+    """One chunk (<= size cases), padded to ``size``; cases whose statics did not converge are
+    run again with speed stepping (8 steps), as :func:`beltjax.statics.analyse_statics` does."""
+    keys = tuple(sorted(values))
+    X = _matrix(values, keys, size)
+    n = len(next(iter(values.values())))
+    out = {k: np.array(np.asarray(a)[:n]) for k, a in _batch_fn(opts, devices, keys)(scene, X, rpm).items()}
+    again = np.flatnonzero(out["code"] == _CODE["not_converged"])
+    if again.size:
+        fn8 = _batch_fn(dataclasses.replace(opts, steps=8), devices, keys)
+        redo = fn8(scene, _matrix({k: np.asarray(values[k])[again] for k in keys}, keys, size), rpm)
+        for k in out:
+            out[k][again] = np.asarray(redo[k])[: again.size]
+    return out
+
+def _slices(n: int, size: int) -> list[slice]:
+    return [slice(s, min(s + size, n)) for s in range(0, n, size)]
+
+def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int,
+               devices: tuple | None, progress, post=lambda r: r) -> list[dict]:
+    """The chunks one after the other in this process (``post`` applied to each chunk's outputs)."""
+    results, done, n = [], 0, sum(len(next(iter(c.values()))) for c in chunks)
+    for c in chunks:
+        results.append(post(_run_chunk(scene, c, rpm, opts, size, devices)))
+        done += len(next(iter(c.values())))
+        if progress is not None:
+            progress(done, n)
+    return results
+
+def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] | list[str] = ("statics", "modal"),
+             modes: int = 12, rpm=None, chunk: int | None = None, progress: Callable[[int, int], None] | None = None,
+             backend: str = "local", dask=None, devices="auto", reference="auto") -> dict[str, np.ndarray]:
+    """Evaluate a batch of cases with one compiled, vmapped function (in chunks).
+
+    values: {parameter path: (n,) values} (file units, e.g. from :func:`cases`);
+    outputs: subset of :data:`OUTPUTS`; modes: frequencies kept per case; rpm: (S,)
+    drive-pulley speeds (rpm) of the campbell output; chunk: cases per compiled batch
+    (the last one padded; default :func:`default_chunk`); progress: callable(done, total) after each chunk;
+    backend: "local" (this process) or "dask" (chunks as tasks on a dask.distributed
+    cluster; ``dask`` is a Client, a scheduler address, or None for the
+    ``BELTJAX_DASK_SCHEDULER`` address or a LocalCluster of one process per core);
+    devices (local backend): shard each chunk over these JAX devices (``shard_map`` on
+    the case axis; the chunk is a multiple of their number); "auto" uses every local
+    accelerator when there are several (see :func:`_devices` for CPU devices), None none;
+    reference: the modes the frequency columns follow, :func:`beltjax.sweep_modes.references` ("auto": those of
+    ``scene`` itself, the nominal; None: no tracking, the lowest ``modes`` sorted per case).
+
+    Frequency columns follow modes, not ranks: column k of ``frequencies_hz`` is the nominal
+    scene's k-th mode (ascending at the nominal), found in each case by its shape (the
+    eigen-solve returns mass-whitened shapes of a few more modes than kept; each case's modes
+    are matched to the nominal's by MAC and an optimal assignment, repeated pairs as
+    subspaces: :func:`beltjax.sweep_modes.track_chunk`), so a mode keeps its column where modes cross; NaN where
+    no mode of the case matches it.  ``campbell_hz`` follows them from the lowest speed along
+    each case's speeds.  ``mode_labels`` / ``campbell_mode_labels`` name the columns (the
+    nominal's labels, from its shapes).
+
+    Returns numpy arrays with the case on axis 0: ``status`` (str, :data:`STATUS`),
+    ``code`` (int); statics: ``span_tensions_N`` (n, spans), ``hub_forces_N`` (n,
+    route entries; magnitudes), ``installation_tension_N``, ``belt_length_m``,
+    ``tensioner_angle_deg`` and ``spring_moment_Nm`` (tensioner drives), ``converged``;
+    modal: ``frequencies_hz`` (n, modes), ``mode_mac`` (n, modes: each column's MAC with the
+    nominal's mode), ``stable``; campbell: ``campbell_rpm`` (S,), ``campbell_hz`` (n, S,
+    modes), ``campbell_stable`` (n, S), ``campbell_mode_match`` (n,: the lowest MAC of a case's
+    tracking); and the lists ``mode_labels``, ``campbell_mode_labels`` (None: not tracked).
+    Failed cases are NaN in every output (unstable ones in the frequencies only).
+    """
+    outputs = [outputs] if isinstance(outputs, str) else list(outputs)
+    bad = [o for o in outputs if o not in OUTPUTS]
+    outputs = tuple(o for o in OUTPUTS if o in outputs)
+    if bad or not outputs:
+        raise SweepError("outputs", f"choose from {', '.join(OUTPUTS)}")
+    if backend not in ("local", "dask"):
+        raise SweepError("backend", f"must be \"local\" or \"dask\", got {backend!r}")
+    values = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in values.items()}
+    if not values:
+        raise SweepError("values", "no parameters given")
+    lengths = {len(v) for v in values.values()}
+    if len(lengths) != 1 or 0 in lengths:
+        raise SweepError("values", f"every parameter needs the same, non-zero number of values, got {sorted(lengths)}")
+    for k in values:
+        try:
+            parameters.check(scene, k)
+        except parameters.ParameterError as exc:
+            raise SweepError("values", str(exc)) from None
+    n = lengths.pop()
+    if n > MAX_CASES:
+        raise SweepError("values", f"{n} cases, more than the limit {MAX_CASES}")
+    scene = drive.canonical(scene)
+    rpm = np.zeros(0) if "campbell" not in outputs else np.asarray(rpm, dtype=float).reshape(-1)
+    if "campbell" in outputs and rpm.size == 0:
+        raise SweepError("rpm", "the campbell output needs drive-pulley speeds (rpm)")
+    modes = max(1, min(int(modes), drive.n_independent(scene)))
+    dp = scene.route.order[drive.drive_pulley(scene)]
+    moving = float(drive.belt_speed(scene)) != 0.0 or f"pulley.{dp}.speed_rpm" in values
+    refs, track = {}, 0
+    if reference is not None and ("modal" in outputs or "campbell" in outputs):
+        refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
+        track = mode_tracking.n_computed(modes, drive.n_independent(scene))
+    opts = _Options(outputs=outputs, modes=modes, gyro=scene.model.has("transport") and moving, track=track)
+    post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
+    pre = _precheck(scene, values, n)
+    invalid = pre != _CODE["ok"]
+    if invalid.all():
+        run_values = values
+    else:  # evaluate a valid case in place of invalid ones (their outputs are discarded)
+        j = int(np.argmin(invalid))
+        run_values = {k: np.where(invalid, v[j], v) for k, v in values.items()}
+    run_values = {k: np.broadcast_to(np.asarray(v, float), (n,)) for k, v in full_values(scene, run_values).items()}
+    devices = _devices(devices) if backend == "local" else None
+    size = _chunk_size(n, chunk, rpm.size, devices)
+    chunks = [{k: v[sl] for k, v in run_values.items()} for sl in _slices(n, size)]
+    if backend == "local":
+        results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post)
+    else:
+        from beltjax.sweep.dask_backend import _run_dask  # imports batch: not at the top
+
+        results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
+    out = {k: np.concatenate([r[k] for r in results]) for k in results[0]}
+    # the checks that need each case's solved installation: the idler where its arm settles, the
+    # string-spread limit at the installed tension (validate.solved_status)
+    arm = out["tensioner_angle_deg"] if scene.tensioner is not None else None
+    solved, _ = validate.solved_status(scene, out["installation_tension_N"], arm, values, n)
+    solved_ok = (pre == _CODE["ok"]) & np.isin(out["code"], (_CODE["ok"], _CODE["unstable"]))
+    pre = np.where(solved_ok, [_CODE[s] for s in solved], pre)
+    if "statics" not in outputs:
+        out.pop("installation_tension_N")
+        out.pop("tensioner_angle_deg", None)
+    out = _finish(out, pre, rpm)
+    for key, o in (("mode_labels", "modal"), ("campbell_mode_labels", "campbell")):
+        if o in outputs:
+            out[key] = list(refs[o][1]) if refs.get(o) else None
+    return out
+
+def _finish(out: dict[str, np.ndarray], pre: np.ndarray, rpm: np.ndarray) -> dict[str, np.ndarray]:
+    """Status strings; NaN in every output of a failed case (frequencies only for unstable ones).
+    pre: (n,) codes of the checks before the computation (0: passed)."""
+    code = np.where(pre != _CODE["ok"], pre, out.pop("code")).astype(int)
+    failed = (code != _CODE["ok"]) & (code != _CODE["unstable"])
+    for k, v in out.items():
+        if v.dtype.kind == "f":
+            v[failed] = np.nan
+        elif k in ("converged", "stable", "campbell_stable"):
+            v[failed] = False
+    if "frequencies_hz" in out:
+        out["frequencies_hz"][code == _CODE["unstable"]] = np.nan
+    if rpm.size:
+        out["campbell_rpm"] = rpm
+    out["code"] = code
+    out["status"] = np.asarray(STATUS, dtype=object)[code]
+    return out
