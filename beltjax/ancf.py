@@ -125,6 +125,17 @@ def kinetic_energy(e, e_dot, c, rhoA, L):
     return _integrate(density, L)
 
 
+def axial_force(lam, EA):
+    """Axial force (N) of a belt at uniform stretch ``lam`` (-): EA (lam^2 - 1)/2 * lam, the
+    Green-Lagrange energy's force per stretched length (the one axial-force law of beltjax)."""
+    return 0.5 * EA * (lam**2 - 1.0) * lam
+
+
+def axial_force_slope(lam, EA):
+    """d(axial_force)/d(lam) (N): EA (3 lam^2 - 1)/2."""
+    return 0.5 * EA * (3.0 * lam**2 - 1.0)
+
+
 def axial_strain(e, xi, L):
     """Green-Lagrange axial strain (r'.r' - 1)/2 at xi (eq. 3.18), dimensionless."""
     rp = slope(e, xi, L)

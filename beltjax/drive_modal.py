@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, modal, span, statics
+from beltjax import ancf, drive, modal, span, statics
 from beltjax.scene import Scene
 
 #: a mode below this frequency (Hz) is a rigid-body mode
@@ -249,7 +249,7 @@ def _half_waves(w):
 def _fine_profile(u, Le, N, per_element: int = 16):
     """Displacement profile along a span from nodal (value, slope) pairs, by the cubic shape functions."""
     x = (np.arange(per_element) + 0.5) / per_element
-    S = np.stack([1 - 3 * x**2 + 2 * x**3, Le * (x - 2 * x**2 + x**3), 3 * x**2 - 2 * x**3, Le * (x**3 - x**2)], 1)
+    S = np.asarray(ancf.shape_functions(x, Le)).T  # (per_element, 4), the elements' own
     nodes = u.reshape(N + 1, 2, -1)
     elem = np.concatenate([nodes[:-1], nodes[1:]], axis=1)  # (N, 4, modes)
     return np.einsum("pk,ekm->epm", S, elem).reshape(N * per_element, -1)

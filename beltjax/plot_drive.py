@@ -8,15 +8,14 @@ import textwrap
 import numpy as np
 from matplotlib.patches import Circle
 
-from beltjax import plotting  # plotting.save, looked up at each call (tests watch it)
+from beltjax import ancf, plotting  # plotting.save, looked up at each call (tests watch it)
 from beltjax.plotting import MAX_MODE_PANELS, coinciding, colormap, literal, literal_wrapped, overlay_style, subplots
 
 
 def _hermite(n_per_element: int = 8, L: float = 1.0):
     """Cubic Hermite shape functions at n_per_element points of [0, 1) plus the end, shape (p, 4)."""
     xi = np.concatenate([np.arange(n_per_element) / n_per_element, [1.0]])
-    return np.stack([1 - 3 * xi**2 + 2 * xi**3, L * (xi - 2 * xi**2 + xi**3), 3 * xi**2 - 2 * xi**3,
-                     L * (xi**3 - xi**2)], axis=1)
+    return np.asarray(ancf.shape_functions(xi, L)).T  # the elements' own (one place: beltjax.ancf)
 
 
 def span_curve(coords, n_elements: int, Le: float, per_element: int = 8):

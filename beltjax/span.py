@@ -91,9 +91,7 @@ def stretch_for_tension(T, EA):
     """Uniform stretch lam with EA (lam^2 - 1)/2 * lam = T (Green-Lagrange axial force), by Newton."""
     lam = 1.0 + T / EA
     for _ in range(8):
-        f = 0.5 * EA * (lam**2 - 1.0) * lam - T
-        df = 0.5 * EA * (3.0 * lam**2 - 1.0)
-        lam = lam - f / df
+        lam = lam - (ancf.axial_force(lam, EA) - T) / ancf.axial_force_slope(lam, EA)
     return lam
 
 

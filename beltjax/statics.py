@@ -41,7 +41,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, span
+from beltjax import ancf, critical, drive, span
 from beltjax.errors import BeltjaxError
 from beltjax.drive import Installation
 from beltjax.scene import TENSIONER, Scene
@@ -64,8 +64,7 @@ def _cross(a, b):
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-def _tension_of_stretch(lam, EA):
-    return 0.5 * EA * (lam**2 - 1.0) * lam
+_tension_of_stretch = ancf.axial_force  # (N) of a uniform stretch
 
 
 def _arm_terms(theta, scene: Scene):

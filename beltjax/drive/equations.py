@@ -14,7 +14,7 @@ from beltjax import ancf, span
 from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, drive_pulley, element_length, flexible, n_rigid, n_span_coordinates, travel_coordinate, travel_follows_drive
 from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, full_coordinates, span_lengths_and_jacobian, split_full
-from beltjax.drive.forces import _bar_energy_l2, body_forces, full_forces, full_mass_matrix
+from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix
 
 
 def transport_speed(scene: Scene, inst: Installation, speed):
@@ -211,10 +211,9 @@ def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduced
         c = _rim_transport_speed(scene, inst, B_dot)
     L0 = element_length(scene, inst)
     cc = c if scene.model.has("transport") else 0.0
-    N = jax.vmap(jax.grad(_bar_energy_l2), in_axes=(0, 0, None, None, None))(l * l, L0, scene.belt.EA, scene.belt.rhoA,
-                                                                            cc) * (2 * l)
-    if not steady and scene.model.has("belt_damping"):
-        N = N + scene.belt.CA / L0 * jnp.sum(J_l * qi_dot, axis=1)
+    rate = jnp.sum(J_l * qi_dot, axis=1) if not steady and scene.model.has("belt_damping") else None
+    N = jax.vmap(lambda l_, r_, L0_: bar_axial_force(l_, r_, L0_, scene, cc),
+                 in_axes=(0, None if rate is None else 0, 0))(l, rate, L0)
     F_b = body_forces(B, scene, inst, None if steady else B_dot, None if steady else tt).reshape(-1)
     F_i = _small_matmul_tn(J_b, F_b - rm.m_body * gamma_b) - _small_matmul_tn(J_l, N)
     return _small_spd_solve(_small_matmul_tn(J_b, rm.m_body[:, None] * J_b), F_i)

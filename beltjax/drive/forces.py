@@ -123,14 +123,21 @@ def _bar_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0):
     """
     L0 = element_length(scene, inst)[s]
     cc = c if scene.model.has("transport") else 0.0
-    f = -jax.grad(_bar_energy)(e, L0, scene.belt.EA, scene.belt.rhoA, cc)
-    if e_dot is not None:
-        d = e[4:6] - e[0:2]
-        u = d / jnp.linalg.norm(d)
-        rate = u @ (e_dot[4:6] - e_dot[0:2])
-        fd = scene.belt.CA / L0 * rate * u
-        f = f.at[0:2].add(fd).at[4:6].add(-fd)
-    return f
+    d = e[4:6] - e[0:2]
+    length = jnp.linalg.norm(d)
+    u = d / length
+    rate = None if e_dot is None else u @ (e_dot[4:6] - e_dot[0:2])
+    N = bar_axial_force(length, rate, L0, scene, cc)
+    return jnp.zeros(8, dtype=e.dtype).at[0:2].set(N * u).at[4:6].set(-N * u)
+
+
+def bar_axial_force(length, rate, L0, scene: Scene, c=0.0):
+    """Axial force (N) of a rotational-model span, a bar of length ``length`` (m) and unstretched
+    length ``L0`` (m): dV/dl of :func:`_bar_energy` (Green-Lagrange, less the centrifugal term of
+    transport speed ``c`` m/s), plus the belt's viscous force CA / L0 dl/dt (thesis eq. 4.15) when
+    ``rate`` (dl/dt, m/s) is given.  The one bar law of both the general and the fast path."""
+    N = jax.grad(_bar_energy_l2)(length * length, L0, scene.belt.EA, scene.belt.rhoA, c) * (2 * length)
+    return N if rate is None else N + scene.belt.CA / L0 * rate
 
 
 def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_dot=None, t=None):

@@ -20,7 +20,7 @@ def span_tension_profile(e, EA, Le, N):
     def one(ee):
         rp = ancf.slope(ee, 0.5, Le)
         lam = jnp.sqrt(rp @ rp)
-        return EA * 0.5 * (lam**2 - 1.0) * lam
+        return ancf.axial_force(lam, EA)
 
     return jax.vmap(one)(e[idx])
 
@@ -31,7 +31,7 @@ def span_tensions(q, scene: Scene, inst: Installation):
     Le = element_length(scene, inst)
     if not flexible(scene):
         lam = jnp.linalg.norm(E[:, 4:6] - E[:, 0:2], axis=1) / Le
-        return scene.belt.EA * 0.5 * (lam**2 - 1.0) * lam
+        return ancf.axial_force(lam, scene.belt.EA)
     N = scene.model.elements_per_span
     return jnp.stack([jnp.mean(span_tension_profile(E[s], scene.belt.EA, Le[s], N)) for s in range(E.shape[0])])
 
