@@ -306,6 +306,54 @@ def full_energy_shares(V, scene: Scene, arrays: dict):
     return shares, np.stack(trans).transpose(2, 0, 1), np.stack(longi).transpose(2, 0, 1)
 
 
+#: relative frequency difference below which modes form one eigenspace (a repeated pair)
+REPEATED_RTOL = 1e-7
+
+
+def localise_repeated(freqs, shapes, M, J, scene: Scene, inst) -> np.ndarray:
+    """Real shapes (n, n_modes) with the basis of every repeated eigenspace chosen by the spans.
+
+    Any basis of a repeated eigenspace is a valid set of modes, and eigh returns an arbitrary
+    one: two equal spans' transverse modes come out as mixtures of both ("a + b").  Within
+    each cluster of frequencies equal to ``REPEATED_RTOL`` (M-orthonormal columns), the
+    basis is rotated to the eigenvectors of the span-energy form that separates the cluster
+    most (the transverse or longitudinal kinetic energy of one span, or one body's), so each
+    mode is as much one span's as the eigenspace allows.  Frequencies are unchanged; numpy.
+    """
+    V = np.array(np.real(shapes), dtype=float)
+    f = np.asarray(freqs)
+    M = np.asarray(M)
+    arrays = label_arrays(scene, inst)
+    Jn = np.asarray(J)
+    i = 0
+    while i < len(f):
+        j = i + 1
+        while j < len(f) and f[i] >= RIGID_HZ and abs(f[j] - f[i]) <= REPEATED_RTOL * f[i]:
+            j += 1
+        if j - i >= 2:
+            C = V[:, i:j]
+            k = j - i
+            pairs = [(a, b) for a in range(k) for b in range(a, k)]
+            combos = np.stack([C[:, a] + C[:, b] if a != b else C[:, a] for a, b in pairs], axis=1)
+            shares, _, _ = full_energy_shares(Jn @ combos, scene, arrays)
+            total = np.einsum("im,ij,jm->m", combos, M, combos)
+            best, R = -1.0, None
+            for share in shares.values():
+                E = share * total  # the energy of that span or body in each combination
+                A = np.zeros((k, k))
+                for (a, b), e in zip(pairs, E):
+                    A[a, b] = e
+                for a, b in pairs:
+                    if a != b:
+                        A[a, b] = A[b, a] = 0.5 * (A[a, b] - A[a, a] - A[b, b])
+                w, U = np.linalg.eigh(0.5 * (A + A.T))
+                if w[-1] - w[0] > best:
+                    best, R = w[-1] - w[0], U
+            V[:, i:j] = C @ R
+        i = j
+    return V
+
+
 def label_modes(freqs, shapes, qi, scene: Scene, inst, J=None):
     """Labels ("1st transverse crank-alternator", "2nd rotational (alternator, crank)", "rigid body").
 
@@ -443,6 +491,8 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
         shapes = np.concatenate([rig.astype(complex), T @ Z], axis=1)
     if st.supercritical is not None:
         return ModalResult(np.zeros(0), [], False, unstable, {}, v, n, np.zeros((n, 0)), st, st.supercritical)
+    if not gyro and bool(out["stable"]):  # real modes: each repeated eigenspace in the basis its spans separate
+        shapes = localise_repeated(freqs, shapes, out["M"], out["J"], scene, st.inst).astype(complex)
     labels, shares = label_modes(freqs, shapes, qi, scene, st.inst, out["J"])
     Vr = np.real(shapes * np.exp(-1j * np.angle(np.sum(shapes**2, axis=0)) / 2))
     Vr = Vr / np.maximum(np.max(np.abs(Vr), axis=0, keepdims=True), 1e-300)
