@@ -457,11 +457,8 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     the rotational model's massless spans, for one, keep positive stiffness there.  The
     scene and the speed are checked as in :func:`beltjax.statics.analyse_statics`.
     """
-    from beltjax import validate
-
-    validate.check_scene(scene)
-    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
-    st = statics.analyse_statics(scene, v, allow_supercritical=True)
+    st = statics.analyse_statics(scene, speed, allow_supercritical=True)  # checks the scene and the speed
+    v = st.speed_m_s
     gyro = scene.model.has("transport") and v != 0.0
     qi = jnp.asarray(st.qi)
     out = modes_at(drive.canonical(scene), qi, st.inst, v, gyro)

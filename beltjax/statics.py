@@ -41,7 +41,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import ancf, critical, drive, span
+from beltjax import ancf, critical, drive, schema, span
 from beltjax.errors import BeltjaxError
 from beltjax.drive import Installation
 from beltjax.scene import TENSIONER, Scene
@@ -64,9 +64,6 @@ def _cross(a, b):
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-_tension_of_stretch = ancf.axial_force  # (N) of a uniform stretch
-
-
 def _arm_terms(theta, scene: Scene):
     """(path length m, belt moment per unit tension m, wrap on the idler rad) at arm angle theta."""
     g = scene.geometry(theta, check=False)
@@ -84,7 +81,7 @@ def _arm_residual(theta, scene: Scene):
     if b.static_tension is not None:
         T = b.static_tension
     else:
-        T = _tension_of_stretch(path / b.length, b.EA)
+        T = ancf.axial_force(path / b.length, b.EA)
     return T * arm - t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
 
 
@@ -146,7 +143,7 @@ def install(scene: Scene) -> Installation:
     else:
         L = jnp.asarray(b.length)
         lam = g.length / L
-        T = _tension_of_stretch(lam, b.EA)
+        T = ancf.axial_force(lam, b.EA)
     return Installation(
         arm_angle=theta, stretch=lam, tension=T, belt_length=L, centers=centers, radii=radii,
         span_start=g.span_start, span_end=g.span_end, span_tangent=g.span_tangent,
@@ -406,7 +403,7 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     from beltjax import validate
 
     validate.check_scene(scene)
-    v = float(drive.belt_speed(scene)) if speed is None else validate.number(speed, "speed", "drive.speed")
+    v = float(drive.belt_speed(scene)) if speed is None else schema.number(speed, "speed", "drive.speed")
     scene = drive.canonical(scene)
     inst = install_compiled(scene)
     check_installation(scene, inst)

@@ -381,9 +381,6 @@ def _statuses(checks, n: int, names) -> tuple[np.ndarray, dict[str, tuple[int, s
     return status, first
 
 
-number = schema.number  # the one check of a concrete API argument (beltjax.schema)
-
-
 def speeds(values, key: str = "rpm", field: str = "drive.rpm") -> np.ndarray:
     """A non-empty 1-D array of speeds, each in the range of ``field`` (NaN, infinite and
     negative speeds are errors naming ``key[i]``)."""
