@@ -54,6 +54,7 @@ import numpy as np
 import beltjax  # noqa: F401  (float64 in jax before any array is made)
 from beltjax.tomltable import show
 from identification.data import DataError, dataset_file, number, read_csv
+from identification import least_squares
 from identification.damping_result import ImpulseFit, RecordFit, _fmt, _safe, amplitude_spectrum  # noqa: F401
 
 __all__ = [
@@ -77,8 +78,10 @@ EXTRA_ORDER = 2
 MIN_CYCLES = 1.0
 #: significance (in standard errors) of a mode's amplitude and of its decay
 SIGNIFICANCE = 3.0
-#: Levenberg-Marquardt: most iterations, and the relative cost decrease left (Gauss-Newton) that ends it
-LM_ITERATIONS, LM_RTOL = 200, 1e-13
+#: Levenberg-Marquardt (identification.least_squares): most steps, the Cauchy stop's relative and
+#: absolute tolerances (on the Jacobi-scaled parameters and on each residual of the scaled record), and
+#: the stop when the Gauss-Newton step could lower the cost by less than LM_GAIN of it
+LM_ITERATIONS, LM_RTOL, LM_ATOL, LM_GAIN = 200, 1e-10, 1e-13, 1e-13
 
 
 # --------------------------------------------------------------------------- pure functions
@@ -157,38 +160,20 @@ def _pencil_guess(tau: np.ndarray, y: np.ndarray, dt: float, modes: int, offset:
     return -s.real[cand], s.imag[cand]
 
 
-def _levenberg_marquardt(p, tau, y, modes: int, offset: bool):
-    """Minimise |r(p)|^2 (Marquardt's diagonal scaling); returns (p, r, J).
+def _residual(p, a):
+    """Model less record (units of the scaled record), for the least-squares layer."""
+    tau, y, modes, offset = a
+    return decay_model(p, tau, modes, offset) - y
 
-    Stops when the undamped Gauss-Newton step would lower the cost by less than LM_RTOL of it
-    (a curvature-scaled gradient test: a heavily damped step that gains little does not stop it).
-    """
+
+def _levenberg_marquardt(p, tau, y, modes: int, offset: bool):
+    """Minimise |r(p)|^2 by the fits' least-squares layer (optimistix Levenberg-Marquardt,
+    Jacobi-scaled at the start); returns (p, r, J) at the optimum."""
     tau_j, y_j = jnp.asarray(tau), jnp.asarray(y)
-    r, J = (np.asarray(a) for a in _residual_jacobian(jnp.asarray(p), tau_j, y_j, modes, offset))
-    cost, lam = float(r @ r), 1e-3
-    for _ in range(LM_ITERATIONS):
-        A, g = J.T @ J, J.T @ r
-        D = np.diag(A).copy()
-        D[D <= 0] = 1.0
-        gn = np.linalg.lstsq(J / np.sqrt(D), -r, rcond=None)[0] / np.sqrt(D)
-        if -float(g @ gn) <= LM_RTOL * cost:
-            break
-        try:
-            step = -np.linalg.solve(A + lam * np.diag(D), g)
-        except np.linalg.LinAlgError:
-            lam *= 10
-            continue
-        p_new = p + step
-        r_new, J_new = (np.asarray(a) for a in _residual_jacobian(jnp.asarray(p_new), tau_j, y_j, modes, offset))
-        c_new = float(r_new @ r_new)
-        if np.isfinite(c_new) and c_new <= cost:
-            p, r, J, cost = p_new, r_new, J_new, c_new
-            lam = max(lam / 3, 1e-12)
-        else:
-            lam *= 4
-            if lam > 1e12:
-                break
-    return p, r, J
+    _, J0 = _residual_jacobian(jnp.asarray(p), tau_j, y_j, modes, offset)
+    sol = least_squares.solve(_residual, jnp.asarray(p), (tau_j, y_j, modes, offset), least_squares.column_scale(J0),
+                              LM_ITERATIONS, history=LM_ITERATIONS, rtol=LM_RTOL, atol=LM_ATOL, gain_rtol=LM_GAIN)
+    return np.asarray(sol.x), np.asarray(sol.residual), np.asarray(sol.jacobian)
 
 
 # --------------------------------------------------------------------------- results

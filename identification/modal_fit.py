@@ -31,7 +31,7 @@ After the fit the modes are labelled again; if a match moved, the fit is repeate
 Fit.  Positive parameters are fitted in log space, others in units of their starting
 magnitude; the loss is 1/2 sum(((f_model - f_measured) / sigma)^2), minimised by
 Levenberg-Marquardt on the exact Jacobian (forward mode through the implicit differentiation
-of the statics and the symmetric eigenvalues; :func:`_least_squares` says why not optax).
+of the statics and the symmetric eigenvalues; :func:`_solve` says why not optax).
 Configurations with the same structure are evaluated
 in one ``vmap``.  Standard errors come from the Jacobian of the residuals at the optimum,
 ``cov = s^2 (J^T J)^-1`` (s = frequency_std_hz, or estimated from the residuals); a Jacobian
@@ -54,8 +54,9 @@ import numpy as np
 from beltjax import drive, drive_modal, parameters, statics
 from beltjax.scene import Scene, SceneError, load_scene
 from beltjax.tomltable import check_document, show
+from identification import least_squares
 from identification.data import DataError, dataset_file, number
-from identification.modal_problem import (_CONF_KEYS, _KEYS, _LABEL, _POSITIVE, Configuration, Measured,  # noqa: F401
+from identification.modal_problem import (MAX_ITERATIONS, _CONF_KEYS, _KEYS, _LABEL, _POSITIVE, Configuration, Measured,  # noqa: F401
                                          Problem, _fail, _parse_configuration, _parse_mode, _start_value,
                                          _strings, parse)
 
@@ -63,8 +64,10 @@ from identification.modal_problem import (_CONF_KEYS, _KEYS, _LABEL, _POSITIVE, 
 GROUP_RTOL = 5e-3
 #: a measured mode farther than this (relative) from every candidate has no matching mode
 MATCH_RTOL = 0.3
-#: a Levenberg-Marquardt round ends when an iteration lowers the loss by less than this fraction
-STALL_RTOL = 1e-6
+#: a Levenberg-Marquardt round ends when a step moves the fitted values (relative units) and every
+#: residual by less than STEP_ATOL + STALL_RTOL times their size (optimistix's Cauchy test), or when
+#: the Gauss-Newton step could lower the loss by less than STALL_RTOL of it
+STALL_RTOL, STEP_ATOL = 1e-6, 1e-9
 #: matching rounds at most (the modes are matched again after each round while the matches move)
 MAX_ROUNDS = 3
 #: smallest accepted ratio of the scaled Jacobian's singular values (identifiability)
@@ -311,19 +314,28 @@ _RESIDUALS = jax.jit(_residuals_pure, static_argnames=("paths",))
 _JACOBIAN = jax.jit(jax.jacfwd(_residuals_pure), static_argnames=("paths",))
 
 
+def _fixed(problem: Problem, lay: _Layout, groups) -> dict:
+    """The residuals' arguments that stay fixed during a fit: stacked canonical scenes and
+    parameter indices per group of like configurations, log flags, starting values, paths."""
+    confs = problem.configurations
+    return dict(stacked=tuple(_stack([drive.canonical(confs[i].scene) for i in g]) for g in groups),
+                idx=tuple(jnp.asarray(lay.index[g]) for g in groups),
+                log=jnp.asarray(lay.log), p0=jnp.asarray(lay.p0), paths=tuple(problem.paths))
+
+
 def _make_residuals(problem: Problem, lay: _Layout, groups):
     """(r, dr/dx): functions of (x, Ws, f_meas, sigma) over all configurations (one vmap per
-    group of like configurations), compiled once per structure."""
-    confs = problem.configurations
-    stacked = tuple(_stack([drive.canonical(confs[i].scene) for i in g]) for g in groups)
-    idx = tuple(jnp.asarray(lay.index[g]) for g in groups)
-    fixed = dict(log=jnp.asarray(lay.log), p0=jnp.asarray(lay.p0), paths=tuple(problem.paths))
+    group of like configurations), compiled once per structure (the benchmark times them; the
+    fit runs them inside :func:`_solve`)."""
+    fixed = _fixed(problem, lay, groups)
 
     def residuals(x, Ws, f_meas, sigma):
-        return _RESIDUALS(x, stacked, idx, tuple(Ws), tuple(f_meas), sigma=sigma, **fixed)
+        return _RESIDUALS(x, fixed["stacked"], fixed["idx"], tuple(Ws), tuple(f_meas), fixed["log"], fixed["p0"],
+                          sigma, paths=fixed["paths"])
 
     def jacobian(x, Ws, f_meas, sigma):
-        return _JACOBIAN(x, stacked, idx, tuple(Ws), tuple(f_meas), sigma=sigma, **fixed)
+        return _JACOBIAN(x, fixed["stacked"], fixed["idx"], tuple(Ws), tuple(f_meas), fixed["log"], fixed["p0"],
+                         sigma, paths=fixed["paths"])
 
     return residuals, jacobian
 
@@ -349,54 +361,43 @@ def _pad(groups, confs, Wlist):
     return Ws, fms, np.concatenate(masks), slots
 
 
-def _least_squares(res, jac):
-    """A minimiser run(x0, args, max_iter) -> (x, loss history, iterations) of
-    1/2 |r(x, *args)|^2 by Levenberg-Marquardt on the exact Jacobian (forward mode: one tangent
-    per fitted value through statics and eigenvalues).  Compiled once, reused across calls.
+def _lsq_residual(x, a):
+    """_residuals_pure with a = (stacked, idx, Ws, f_meas, log, p0, sigma, paths), for the
+    least-squares layer (module level: like fits share one compilation)."""
+    stacked, idx, Ws, f_meas, log, p0, sigma, paths = a
+    return _residuals_pure(x, stacked, idx, Ws, f_meas, log, p0, sigma, paths)
 
+
+def _solve(fixed: dict, x0, Ws, f_meas, sigma, max_steps: int, progress: bool = False):
+    """Minimise 1/2 |r(x)|^2 from x0 by the fits' least-squares layer (optimistix
+    Levenberg-Marquardt on the exact forward-mode Jacobian: one tangent per fitted value
+    through statics and eigenvalues); a :class:`least_squares.Solution`.  ``max_steps = 0``
+    gives the residuals and Jacobian at x0 from the same compiled program.
+
+    x is already in relative units (log, or per starting magnitude), so the scaling is 1.
     Why not optax here: this is a small least-squares problem (a handful of values, tens of
     residuals) whose scales differ by 10^3 (a belt length moves frequencies far more than EI).
     Measured on the bench dataset: optax L-BFGS, even Jacobi-scaled, took ~6 s per iteration
     (reverse mode through the statics inside its line search) and >100 iterations; LM takes
-    ~1 s per iteration and converges in under 10.  The tensile fit uses optax, where its model
-    is cheap and the starts are many."""
-    def run(x0, args, max_iter: int, progress: bool = False, check=None):
-        from beltjax.progress import Reporter
+    ~0.3 s per step and converges in 2-3.  The tensile fit uses optax L-BFGS first, where its
+    model is cheap and the starts are many."""
+    from beltjax.progress import Reporter
 
-        reporter = Reporter()  # progress on stderr
-        x = np.asarray(x0, dtype=float)
-        if check is not None:
-            check(np.asarray(jac(x, *args)))
-        r = np.asarray(res(x, *args))
-        if not np.all(np.isfinite(r)):
-            raise DataError("modal", "the model cannot be evaluated at the starting values (NaN frequencies)")
-        hist, mu, it = [0.5 * float(r @ r)], 1e-3, 0
-        for it in range(1, max_iter + 1):
-            J = np.asarray(jac(x, *args))
-            A, g = J.T @ J, J.T @ r
-            D = np.diag(np.maximum(np.diag(A), 1e-30 * max(1.0, np.max(np.diag(A)))))
-            while True:
-                dx = -np.linalg.solve(A + mu * D, g)
-                r_new = np.asarray(res(x + dx, *args))
-                if np.all(np.isfinite(r_new)) and r_new @ r_new <= r @ r:
-                    x, r, mu = x + dx, r_new, max(mu / 10, 1e-12)
-                    break
-                mu *= 10
-                if mu > 1e10:
-                    dx = np.zeros_like(x)
-                    break
-            hist.append(0.5 * float(r @ r))
-            if progress:
-                reporter.update(f"modal fit: LM {it:3d}  loss {hist[-1]:.6g}  step {np.max(np.abs(dx)):.2e}")
-            # converged, or stalled: a measured mode's matched model mode (fixed by its index in
-            # the sorted spectrum) crossed another one; the caller matches again from here
-            if np.max(np.abs(dx)) < 1e-9 or hist[-2] - hist[-1] <= STALL_RTOL * hist[-2]:
-                break
-        if progress:
-            reporter.finish()
-        return jnp.asarray(x), hist, it
+    a = (fixed["stacked"], fixed["idx"], tuple(Ws), tuple(f_meas), fixed["log"], fixed["p0"],
+         jnp.asarray(sigma, dtype=jnp.float64), fixed["paths"])
+    reporter = Reporter()  # progress on stderr
 
-    return run
+    def line(k, loss):
+        if progress and k > 0:
+            reporter.update(f"modal fit: LM {k:3d}  loss {loss:.6g}")
+
+    with least_squares.reporting(line):
+        sol = least_squares.solve(_lsq_residual, jnp.asarray(x0), a, jnp.ones(len(x0)), max_steps,
+                                  history=MAX_ITERATIONS, rtol=STALL_RTOL, atol=STEP_ATOL, gain_rtol=STALL_RTOL,
+                                  report=True)
+    if progress and max_steps > 0:
+        reporter.finish()
+    return sol
 
 
 def _unit_scale(x, lay: _Layout):
@@ -427,7 +428,7 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
     if m_total <= len(lay.names):
         raise DataError("modal", f"{m_total} measured modes for {len(lay.names)} fitted values: "
                         "more modes than parameters are needed")
-    residuals, jacobian = _make_residuals(problem, lay, groups)
+    fixed = _fixed(problem, lay, groups)
     x = jnp.zeros(len(lay.names))
     hist_all, rounds, iterations = [], 0, 0
     before = None
@@ -435,7 +436,6 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
     Wlist = None
     sig0 = 1.0 if problem.sigma_hz is None else problem.sigma_hz
 
-    minimise = _least_squares(residuals, jacobian)
     for rounds in range(1, MAX_ROUNDS + 1):
         p = np.asarray(_to_params(x, lay))
         labelled = []
@@ -453,13 +453,17 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
             from beltjax.progress import message
 
             message(f"modal fit: round {rounds}, {len(lay.names)} values, {m_total} modes")
-        x, hist, n_it = minimise(x, (Ws, fms, sig0), problem.max_iterations, progress,
-                                 check=lambda J: _identifiability(J[mask] * _unit_scale(x, lay), lay.names))
+        start = _solve(fixed, x, Ws, fms, sig0, 0)
+        if not np.all(np.isfinite(np.asarray(start.residual))):
+            raise DataError("modal", "the model cannot be evaluated at the starting values (NaN frequencies)")
+        _identifiability(np.asarray(start.jacobian)[mask] * _unit_scale(x, lay), lay.names)
+        sol = _solve(fixed, x, Ws, fms, sig0, problem.max_iterations, progress)
+        x, n_it = sol.x, int(sol.steps)
         iterations += n_it
-        hist_all += hist
-    # statistics at the optimum
-    Jx = np.asarray(jacobian(x, Ws, fms, 1.0))[mask]
-    r = np.asarray(residuals(x, Ws, fms, 1.0))[mask]
+        hist_all += [float(v) for v in np.asarray(sol.loss)[: n_it + 1]]
+    # statistics at the optimum (residuals in Hz: sigma = 1)
+    Jx = sig0 * np.asarray(sol.jacobian)[mask]
+    r = sig0 * np.asarray(sol.residual)[mask]
     p = np.asarray(_to_params(x, lay))
     dp_dx = np.where(lay.log, p, np.where(lay.p0 != 0, np.abs(lay.p0), 1.0))
     Jp = Jx / dp_dx  # d r / d p (Hz per unit)

@@ -24,6 +24,8 @@ _POSITIVE = re.compile(
 _LABEL = re.compile(r"^\s*(\d+)\s*(?:st|nd|rd|th)\s+(transverse|longitudinal|rotational)\b", re.I)
 
 
+#: most Levenberg-Marquardt steps per matching round a dataset may ask for (the compiled loss history's length)
+MAX_ITERATIONS = 1000
 _KEYS = {"parameters", "per_configuration", "frequency_std_hz", "max_iterations", "configuration"}
 
 
@@ -172,8 +174,8 @@ def parse(section: dict, base: pathlib.Path) -> Problem:
     sigma = section.get("frequency_std_hz")
     sigma = None if sigma is None else number(section, "frequency_std_hz", "modal", positive=True)
     it = section.get("max_iterations", 50)
-    if isinstance(it, bool) or not isinstance(it, int) or it < 1:
-        raise DataError("modal.max_iterations", f"must be a positive integer, got {show(it)}")
+    if isinstance(it, bool) or not isinstance(it, int) or not 1 <= it <= MAX_ITERATIONS:
+        raise DataError("modal.max_iterations", f"must be a whole number from 1 to {MAX_ITERATIONS}, got {show(it)}")
     return Problem(configurations, paths, per, sigma, it)
 
 

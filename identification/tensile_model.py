@@ -12,6 +12,7 @@ import numpy as np
 import optax
 
 import beltjax  # noqa: F401  (float64)
+from identification import least_squares
 
 
 #: optimiser settings: starts minimised together, L-BFGS iterations, Levenberg-Marquardt iterations
@@ -22,6 +23,13 @@ LBFGS_STEPS = 150
 
 
 LM_STEPS = 40
+#: the Levenberg-Marquardt polish stops when the Cauchy test holds at these tolerances
+LM_RTOL, LM_ATOL = 1e-10, 1e-13
+
+
+def _residual_fn(theta, a):
+    """_residuals(theta, f, G, W) with a = (f, G, W), for the least-squares layer."""
+    return _residuals(theta, *a)
 
 
 #: frequency-grid length of one evaluation call (bands and tables are padded to it)
@@ -50,10 +58,10 @@ def _chi2(theta, f, G, W):
 
 
 def _fit_one(theta0, f, G, W):
-    """L-BFGS (optax) in Jacobi-scaled coordinates, then Levenberg-Marquardt, from one start."""
+    """L-BFGS (optax) in Jacobi-scaled coordinates, then Levenberg-Marquardt (the fits'
+    least-squares layer, same scaling), from one start."""
     J0 = jax.jacfwd(_residuals)(theta0, f, G, W)
-    D = jnp.linalg.norm(J0, axis=0)
-    D = jnp.where(D > 0, D, 1.0)
+    D = least_squares.column_scale(J0)
 
     def loss(u):
         r = _residuals(theta0 + u / D, f, G, W)
@@ -77,21 +85,11 @@ def _fit_one(theta0, f, G, W):
     theta = theta0 + u / D
     theta = jnp.where(jnp.isfinite(_chi2(theta, f, G, W)), theta, theta0)
 
-    def lm_step(carry, _):
-        th, lam = carry
-        r = _residuals(th, f, G, W)
-        J = jax.jacfwd(_residuals)(th, f, G, W)
-        A = J.T @ J
-        dA = jnp.diag(A)
-        step = jnp.linalg.solve(A + lam * jnp.diag(dA + 1e-30 * jnp.max(dA)), -(J.T @ r))
-        c_old = jnp.sum(r**2)
-        c_new = _chi2(th + step, f, G, W)
-        ok = jnp.all(jnp.isfinite(step)) & (c_new < c_old)
-        th = jnp.where(ok, th + step, th)
-        lam = jnp.where(ok, jnp.maximum(lam / 3.0, 1e-12), jnp.minimum(lam * 4.0, 1e12))
-        return (th, lam), 0.5 * jnp.where(ok, c_new, c_old)
-
-    (theta, _), hist_lm = jax.lax.scan(lm_step, (theta, jnp.asarray(1e-3)), None, length=LM_STEPS)
+    sol = least_squares.solve(_residual_fn, theta, (f, G, W), D, LM_STEPS, history=LM_STEPS, rtol=LM_RTOL,
+                              atol=LM_ATOL)
+    ok = jnp.isfinite(_chi2(sol.x, f, G, W))
+    theta = jnp.where(ok, sol.x, theta)
+    hist_lm = sol.loss[1:]  # the first entry is the start, the last L-BFGS loss
     return theta, hist_lbfgs, hist_lm
 
 
