@@ -58,7 +58,7 @@ def _dense_jvp(f, y):
     linear map column by column, once per solve (2-3 per step).  Through the modal fit's statics
     and eigenvalues each materialisation replays the whole tangent program; with the Jacobian
     formed once by ``jacfwd`` (all tangents in one pass) and stored, a materialisation is a
-    matrix product.  Measured on the bench modal dataset: 1.62 s per fit's solve without, X s
+    matrix product.  Measured on the bench modal dataset: the whole fit 2.9 s without, 1.9 s
     with (benchmarks/results/least_squares.json)."""
 
     @jax.custom_jvp
