@@ -25,13 +25,14 @@ import numpy as np
 
 from beltjax import critical, drive, drive_modal, mode_tracking, statics
 from beltjax.scene import Scene
+from beltjax.drive.effects import effects_of
 
 DEFAULT_ORDERS = (1.0, 2.0, 3.0)
 
 
 @partial(jax.jit, static_argnames=("n_modes",))
 def _batch(scene: Scene, speeds, n_modes: int):
-    gyro = scene.model.has("transport")
+    gyro = effects_of(scene).moving_belt
     nr = drive_modal.n_rigid_modes(scene)
 
     def one(v):
@@ -79,7 +80,7 @@ def campbell_frequencies(scene: Scene, rpm, n_modes: int = 20, chunk: int = 32, 
 
 @partial(jax.jit, static_argnames=("k",))
 def _tracked_batch(scene: Scene, speeds, k: int):
-    gyro = scene.model.has("transport")
+    gyro = effects_of(scene).moving_belt
 
     def one(v):
         qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
@@ -107,7 +108,7 @@ def reference_modes(scene: Scene, n_modes: int, rpm: float | None = None):
     scene = drive.canonical(scene)
     v = float(drive.belt_speed(scene, rpm)) if rpm is not None else float(drive.belt_speed(scene))
     st = statics.analyse_statics(scene, v)
-    out = drive_modal.modes_at(scene, jnp.asarray(st.qi), st.inst, v, scene.model.has("transport") and v != 0.0)
+    out = drive_modal.modes_at(scene, jnp.asarray(st.qi), st.inst, v, effects_of(scene).moving_belt and v != 0.0)
     if not bool(out["stable"]):
         return None
     k = min(n_modes, drive.n_independent(scene))
@@ -331,7 +332,7 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
         stable=tm.stable,
         converged=tm.converged,
         drive_pulley=scene.route.order[drive.drive_pulley(scene)],
-        transport=scene.model.has("transport"),
+        transport=effects_of(scene).moving_belt,
         labels_along=along,
         label_changes=sorted(changes, key=lambda c: (c["rpm"], c["mode"])),
         mac=t.mac[:, curves],

@@ -17,6 +17,7 @@ import sys
 from beltjax.errors import BeltjaxError, InputError
 from beltjax.summaries import (_panels_note, campbell_summary, modal_table, simulation_table, span_table,  # noqa: F401
                                statics_table)
+from beltjax.drive.effects import effects_of
 
 
 class _Parser(argparse.ArgumentParser):
@@ -226,7 +227,7 @@ def cmd_modal(args) -> int:
     rpm = "" if args.rpm is None else f" ({args.rpm:g} rpm of the drive pulley)"
     print(f"modes of {_title(scene, args.scene)}")
     print(f"belt speed {m.speed_m_s:g} m/s{rpm}" + ("; stable" if m.stable else ""))
-    if m.speed_m_s != 0 and not scene.model.has("transport"):
+    if m.speed_m_s != 0 and not effects_of(scene).moving_belt:
         print("note: the scene does not list the \"transport\" effect, so the belt speed does not change the modes")
     print(modal_table(m, args.modes))
     print(_panels_note(m, args.modes))

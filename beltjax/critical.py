@@ -43,6 +43,7 @@ import numpy as np
 
 from beltjax import drive
 from beltjax.scene import Scene
+from beltjax.drive.effects import effects_of
 
 #: relative width to which :func:`critical_speed` brackets the critical belt speed
 CRITICAL_RTOL = 1e-7
@@ -174,7 +175,7 @@ def message(scene: Scene, speed: float, critical_speed: float | None, forces=Non
     head = f"belt speed {speed:.4g} m/s ({drive_rpm(scene, speed):.5g} rpm of {drv}) is past the critical speed"
     crit = ("" if critical_speed is None else
             f" {critical_speed:.4g} m/s ({drive_rpm(scene, critical_speed):.5g} rpm)")
-    note = ("" if scene.model.has("transport") else
+    note = ("" if effects_of(scene).moving_belt else
             " (the scene leaves out the \"transport\" effect, so the model would not show it)")
     advice = "lower the speed below the critical speed or raise the belt tension"
     if forces is None:

@@ -30,6 +30,7 @@ import numpy as np
 
 from beltjax import ancf, drive, modal, span, statics
 from beltjax.scene import Scene
+from beltjax.drive.effects import effects_of
 
 #: a mode below this frequency (Hz) is a rigid-body mode
 RIGID_HZ = 1e-2
@@ -55,7 +56,7 @@ def linearise(qi, scene: Scene, inst, speed=0.0):
     K = -jax.jacfwd(lambda q: drive.static_residual(q, scene, inst, speed))(qi)
     M = 0.5 * (M + M.T)
     K = 0.5 * (K + K.T)
-    if scene.model.has("transport"):
+    if effects_of(scene).moving_belt:
         q = phi(qi)
         c = drive.transport_speed(scene, inst, speed)
         Gf = -jax.jacfwd(lambda v: drive.full_forces(q, v, scene, inst, c))(jnp.zeros_like(q))
@@ -214,7 +215,7 @@ def frequencies(scene: Scene, speed=None):
     speed = drive.belt_speed(scene) if speed is None else speed
     qi, inst, _ = statics.equilibrium(scene, speed=speed)
     M, G, K = linearise(qi, scene, inst, speed)
-    gyro = scene.model.has("transport")
+    gyro = effects_of(scene).moving_belt
     stable, f = frequencies_from_matrices(M, G, K, n_rigid_modes(scene), gyro, rigid_mode(scene, inst))
     return jnp.where(stable, f, jnp.nan)
 
@@ -459,7 +460,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     """
     st = statics.analyse_statics(scene, speed, allow_supercritical=True)  # checks the scene and the speed
     v = st.speed_m_s
-    gyro = scene.model.has("transport") and v != 0.0
+    gyro = effects_of(scene).moving_belt and v != 0.0
     qi = jnp.asarray(st.qi)
     out = modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
     stable = bool(out["stable"])

@@ -53,6 +53,7 @@ import numpy as np
 
 from beltjax import drive
 from beltjax.scene import Scene
+from beltjax.drive.effects import effects_of
 
 #: fewer steps of a fixed-step solver per forcing period than this give a warning
 MIN_STEPS_PER_PERIOD = 20
@@ -97,7 +98,7 @@ def peak_drive_speed(scene: Scene, t_end: float) -> float:
     if p.target_speed_rpm is not None and a != 0.0:
         tau = min(t_end, max(0.0, (float(p.target_speed_rpm) * rpm - w0) / a))
     w = max(w0, abs(w0 + a * tau))
-    if scene.model.has("speed_fluctuation"):
+    if "speed_fluctuation" in effects_of(scene):
         w += 2 * math.pi * float(p.fluctuation_frequency_hz) * math.radians(abs(float(p.fluctuation_amplitude_deg)))
     return w
 
@@ -126,11 +127,11 @@ def forcing(scene: Scene, t_end: float) -> list[Forcing]:
             out.append(Forcing(f"span_load[{i}].frequency_hz", what, frequency_hz=float(ld.frequency_hz)))
         out += _window(f"span_load[{i}].t_end_s", what, ld.t_start_s, ld.t_end_s, t_end)
     d = scene.pulley(scene.route.order[drive.drive_pulley(scene)])
-    if (scene.model.has("speed_fluctuation") and float(d.fluctuation_frequency_hz) > 0.0
+    if ("speed_fluctuation" in effects_of(scene) and float(d.fluctuation_frequency_hz) > 0.0
             and float(d.fluctuation_amplitude_deg) != 0.0):
         out.append(Forcing(f"pulley[{[p.name for p in scene.pulleys].index(d.name)}].fluctuation_frequency_hz",
                            f"the speed fluctuation of {d.name}", frequency_hz=float(d.fluctuation_frequency_hz)))
-    if scene.model.has("unbalance"):
+    if "unbalance" in effects_of(scene):
         v = peak_drive_speed(scene, t_end) * float(d.radius)  # belt speed, m/s
         for i, p in enumerate(scene.pulleys):
             if p.name in scene.route.order and np.any(np.asarray(p.cm_offset) != 0.0) and v > 0.0:
@@ -212,7 +213,7 @@ def after_run(scene: Scene, speeds_rpm, dt: float, output_dt: float, fixed: bool
     not known before the run (:func:`forcing` takes its initial speed), so its once-per-revolution
     force is checked here against the step (fixed-step solvers) and the output sampling.
     """
-    if not scene.model.has("unbalance"):
+    if "unbalance" not in effects_of(scene):
         return []
     out = []
     limit = min(0.5 / output_dt, 0.5 / dt if fixed else math.inf)

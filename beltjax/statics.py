@@ -45,6 +45,7 @@ from beltjax import ancf, critical, drive, schema, span
 from beltjax.errors import BeltjaxError
 from beltjax.drive import Installation
 from beltjax.scene import TENSIONER, Scene
+from beltjax.drive.effects import effects_of
 
 #: largest installation strain accepted (2 %, far beyond any belt's working strain): a
 #: belt that would need more "cannot be fitted"
@@ -455,7 +456,7 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
         res.spring_moment_Nm = float(drive.spring_moment(th, scene))
         k = order.index(TENSIONER)
         pivot = hubs[k].copy()
-        if scene.model.has("gravity"):
+        if "gravity" in effects_of(scene):
             t = scene.tensioner
             pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
         res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 
 from beltjax import critical, drive
 from beltjax.scene import Scene
+from beltjax.drive.effects import effects_of
 
 
 def output_nodes(scene: Scene) -> list[tuple[int, int, str]]:
@@ -57,7 +58,7 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     tensions = drive.span_tensions(q, scene, inst)
     lam = drive.full_span_lengths(q, scene) / (drive.element_length(scene, inst) * drive.span_elements(scene))
     pulley = critical.pulley_forces(tensions, lam, c, scene.belt.rhoA)  # whatever the effects
-    forces = pulley if scene.model.has("transport") else tensions
+    forces = pulley if effects_of(scene).moving_belt else tensions
     phis, theta = drive.angles_and_arm(qi, scene, inst)
     out = dict(
         span_tensions_N=tensions,

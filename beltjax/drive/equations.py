@@ -13,6 +13,7 @@ import numpy as np
 from beltjax import ancf, span
 from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, drive_pulley, element_length, flexible, n_rigid, n_span_coordinates, travel_coordinate, travel_follows_drive
+from beltjax.drive.effects import effects_of
 from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, full_coordinates, span_lengths_and_jacobian, split_full
 from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix
 
@@ -210,8 +211,9 @@ def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduced
     else:  # the drive pulley's actual rim speed, as transient_transport_speed
         c = _rim_transport_speed(scene, inst, B_dot)
     L0 = element_length(scene, inst)
-    cc = c if scene.model.has("transport") else 0.0
-    rate = jnp.sum(J_l * qi_dot, axis=1) if not steady and scene.model.has("belt_damping") else None
+    fx = effects_of(scene)
+    cc = fx.transport_speed(c)
+    rate = jnp.sum(J_l * qi_dot, axis=1) if not steady and "belt_damping" in fx else None
     N = jax.vmap(lambda l_, r_, L0_: bar_axial_force(l_, r_, L0_, scene, cc),
                  in_axes=(0, None if rate is None else 0, 0))(l, rate, L0)
     F_b = body_forces(B, scene, inst, None if steady else B_dot, None if steady else tt).reshape(-1)

@@ -8,10 +8,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import ancf, span
+from beltjax import span
 from beltjax.ancf import Section
 from beltjax.scene import ARM, TENSIONER, Scene
 from beltjax.drive.topology import GRAVITY, Installation, drive_pulley, element_length, flexible, section, span_elements, span_names, travel_follows_drive
+from beltjax.drive.effects import Effects, effects_of
 from beltjax.drive.kinematics import split_full
 
 
@@ -53,11 +54,10 @@ def full_mass_matrix(scene: Scene, inst: Installation):
     return jax.scipy.linalg.block_diag(*blocks)
 
 
-def _span_potential(e, sec: Section, Le, idx, bending, gravity: bool):
+def _span_potential(e, sec: Section, Le, idx, bending, effects: Effects):
     U = span.span_strain_energy(e, sec, Le, idx, bending)
-    if gravity:
-        U = U + jnp.sum(jax.vmap(ancf.gravity_energy, in_axes=(0, None, None, None))(e[idx], sec.rhoA, Le, GRAVITY))
-    return U
+    extra = effects.span_potential(e, sec.rhoA, Le, idx)
+    return U if extra is None else U + extra
 
 
 def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, dissipative=False):
@@ -69,33 +69,17 @@ def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot
     with ``dissipative`` (transients) ``belt_damping`` adds the viscous axial
     force of CA (N s): Rayleigh function 1/2 int CA (d eps/dt)^2 dx.
     """
-    damp = dissipative and scene.model.has("belt_damping")
+    fx = effects_of(scene)
     if not flexible(scene):
+        damp = dissipative and "belt_damping" in fx
         return _bar_forces(e, e_dot if damp else None, s, scene, inst, c)
     N = scene.model.elements_per_span
     idx = span.element_index(N)
     sec = section(scene)
     Le = element_length(scene, inst)[s]
-    grav = scene.model.has("gravity")
-    f = -jax.grad(_span_potential)(e, sec, Le, idx, scene.model.bending, grav)
-    if scene.model.has("transport"):
-        f = f + span.span_inertial_forces(e, e_dot, c, c_dot, sec.rhoA, Le, idx)
-    if damp:
-        f = f - jax.grad(_span_dissipation, argnums=1)(e, e_dot, scene.belt.CA, Le, idx)
-    return f
-
-
-def _element_dissipation(e, e_dot, CA, L):
-    """Rayleigh function of an element (W): 1/2 int CA (r'.r'_t)^2 dx (Green-Lagrange strain rate)."""
-
-    def density(xi):
-        return 0.5 * CA * (ancf.slope(e, xi, L) @ ancf.slope(e_dot, xi, L)) ** 2
-
-    return L * jnp.sum(ancf.WEIGHTS * jax.vmap(density)(ancf.XI))
-
-
-def _span_dissipation(e, e_dot, CA, Le, idx):
-    return jnp.sum(jax.vmap(_element_dissipation, in_axes=(0, 0, None, None))(e[idx], e_dot[idx], CA, Le))
+    f = -jax.grad(_span_potential)(e, sec, Le, idx, scene.model.bending, fx)
+    extra = fx.span_forces(e, e_dot, c, c_dot, scene, Le, idx, dissipative)
+    return f if extra is None else f + extra
 
 
 def _bar_energy(e, L0, EA, rhoA, c):
@@ -122,7 +106,7 @@ def _bar_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0):
     or None (no damping).
     """
     L0 = element_length(scene, inst)[s]
-    cc = c if scene.model.has("transport") else 0.0
+    cc = effects_of(scene).transport_speed(c)
     d = e[4:6] - e[0:2]
     length = jnp.linalg.norm(d)
     u = d / length
@@ -150,19 +134,15 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     f = jnp.zeros_like(bodies)
     if scene.tensioner is not None:
         f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
-    if scene.model.has("gravity"):
+    fx = effects_of(scene)
+    if "gravity" in fx:
         f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
         if inst is not None and flexible(scene):
             f = f.at[: len(scene.route.order), 2].add(_belt_weight_slide_moments(scene, inst, t is not None))
     if t is None:
         return f
     order = scene.route.order
-    if scene.model.has("bearing_damping"):
-        for i, name in enumerate(order):
-            if name != TENSIONER:
-                f = f.at[i, 2].add(-scene.pulley(name).bearing_damping * bodies_dot[i, 2])
-    if scene.tensioner is not None and scene.model.has("tensioner_damping"):
-        f = f.at[-1, 2].add(-scene.tensioner.damping * bodies_dot[-1, 2])
+    f = fx.body_forces(f, bodies, bodies_dot, scene, t)
     for load in scene.torques:
         k = -1 if load.pulley == ARM else order.index(load.pulley)
         f = f.at[k, 2].add(torque(load, t))

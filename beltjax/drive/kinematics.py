@@ -11,6 +11,7 @@ import numpy as np
 from beltjax import geometry
 from beltjax.scene import TENSIONER, Scene
 from beltjax.drive.topology import Installation, drive_pulley, flexible, is_free, n_rigid, n_span_coordinates, span_elements, travel_follows_drive
+from beltjax.drive.effects import effects_of
 
 
 def _split(qi, scene: Scene):
@@ -62,9 +63,7 @@ def belt_travel(scene: Scene, t):
         t_star = (wT - w0) / jnp.where(a == 0.0, 1.0, a)
         tau = jnp.minimum(t, t_star)
         angle = w0 * tau + 0.5 * a * tau**2 + wT * (t - tau)
-    if scene.model.has("speed_fluctuation"):
-        A = jnp.deg2rad(p.fluctuation_amplitude_deg)
-        angle = angle + A * jnp.sin(2 * jnp.pi * p.fluctuation_frequency_hz * t)
+    angle = effects_of(scene).drive_angle(angle, p, t)
     return p.radius * angle
 
 
@@ -164,7 +163,7 @@ def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=N
     order = scene.route.order
     senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
     angle = phi if t is None else phi + senses * belt_travel(scene, t) / inst.radii
-    unbalance = scene.model.has("unbalance")
+    unbalance = "unbalance" in effects_of(scene)
     bodies = []
     if unbalance:  # the body (x, y) is the centre of mass of pulley + wrapped belt
         m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch

@@ -13,6 +13,7 @@ from beltjax import critical, drive, drive_modal, parameters, statics
 from beltjax.scene import Scene
 from beltjax.optimize import modes
 from beltjax.optimize.problem import _UNIT, SOFT_HZ, Constraint, Problem, _band_starts, _bands, _pairs, sample_rpm
+from beltjax.drive.effects import effects_of
 
 
 #: weight at which a mode is watched in the exact max (the goal and the reports): 1, the
@@ -42,7 +43,7 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     sc = parameters.set_values(scene, dict(zip(problem.paths, x)))
     inst = statics.install(sc)
     nr = drive_modal.n_rigid_modes(sc)
-    gyro = sc.model.has("transport")
+    gyro = effects_of(sc).moving_belt
     span = _watches_span(problem)
     v_rigid = drive_modal.rigid_mode(sc, inst)
 

@@ -17,6 +17,7 @@ from beltjax.optimize.loss import (WATCHED, _compiled, _loss_key, _measures_jit,
                                    band_weights, problem_masks, terms_from_measures)
 from beltjax.optimize.problem import _UNIT_NAME, OptimizeError, Problem, _band_starts, _bands, sample_rpm
 from beltjax.optimize.solver import OptimizeResult, _floats
+from beltjax.drive.effects import effects_of
 
 
 def constraint_report(m: dict, scene: Scene, problem: Problem) -> list[dict]:
@@ -150,7 +151,7 @@ def _static_result(scene: Scene, m: dict) -> statics.StaticResult:
         res.tensioner_angle_deg = th
         res.spring_moment_Nm = float(drive.spring_moment(math.radians(th), scene))
         pivot = hub[order.index(TENSIONER)].copy()
-        if scene.model.has("gravity"):
+        if "gravity" in effects_of(scene):
             t = scene.tensioner
             pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
         res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
@@ -173,7 +174,7 @@ def mode_labels(scene: Scene, qi, inst, rpm: float) -> list[str] | None:
     sc = drive.canonical(scene)
     v = float(drive.belt_speed(sc, rpm))
     qi = jnp.asarray(qi)
-    out = drive_modal.modes_at(sc, qi, inst, v, sc.model.has("transport") and v != 0.0)
+    out = drive_modal.modes_at(sc, qi, inst, v, effects_of(sc).moving_belt and v != 0.0)
     if not bool(out["stable"]):
         return None
     labels, _ = drive_modal.label_modes(out["freqs"], out["shapes"], qi, sc, inst, out["J"])
@@ -230,7 +231,7 @@ def check(scene: Scene, problem: Problem, evaluate: Callable, n_modes: int | Non
         cb = campbell.CampbellResult(
             rpm=grid, frequencies_hz=F[:, :keep], labels=first[:keep], orders=orders,
             crossings=campbell.crossings(grid, F[:, :keep], orders, first[:keep]), stable=good, converged=good,
-            drive_pulley=scene.route.order[drive.drive_pulley(scene)], transport=scene.model.has("transport"),
+            drive_pulley=scene.route.order[drive.drive_pulley(scene)], transport=effects_of(scene).moving_belt,
         )
 
         @functools.lru_cache(maxsize=None)

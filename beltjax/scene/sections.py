@@ -346,20 +346,9 @@ def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
 
 
 def _check_effects(scene: Scene, source: str):
-    """A parameter of an effect that is not switched on is an error, not silently ignored."""
-    model = scene.model
-    if float(scene.belt.CA) > 0 and not model.has("belt_damping"):
-        _fail("belt.CA", "given but \"belt_damping\" is not in model.effects", source)
-    if scene.tensioner is not None and float(scene.tensioner.damping) > 0 and not model.has("tensioner_damping"):
-        _fail("tensioner.damping", "given but \"tensioner_damping\" is not in model.effects", source)
-    for i, p in enumerate(scene.pulleys):
-        if float(p.bearing_damping) > 0 and not model.has("bearing_damping"):
-            _fail(f"pulley[{i}].bearing_damping", "given but \"bearing_damping\" is not in model.effects", source)
-        if float(jnp.linalg.norm(p.cm_offset)) > 0 and not model.has("unbalance"):
-            _fail(f"pulley[{i}].cm_offset", "given but \"unbalance\" is not in model.effects", source)
-        if float(p.fluctuation_amplitude_deg) > 0 and not model.has("speed_fluctuation"):
-            _fail(
-                f"pulley[{i}].fluctuation_amplitude_deg",
-                "given but \"speed_fluctuation\" is not in model.effects",
-                source,
-            )
+    """A parameter of an effect that is not switched on is an error, not silently ignored (each
+    effect module says which parameters it owns: beltjax.drive.effects)."""
+    from beltjax.drive.effects import effects_of
+
+    for key, name in effects_of(scene).unlisted_parameters(scene):
+        _fail(key, f"given but \"{name}\" is not in model.effects", source)

@@ -16,6 +16,7 @@ import numpy as np
 from beltjax import critical, drive, drive_modal, mode_tracking, parameters, statics, sweep_modes, validate
 from beltjax.scene import Scene
 from beltjax.sweep.spec import CAMPBELL_CHUNK_POINTS, MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
+from beltjax.drive.effects import effects_of
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,7 +83,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         res["frequencies_hz"] = jnp.where(stable, f, jnp.nan)
         res["stable"] = stable
     if "campbell" in outputs:
-        transport = sc.model.has("transport")
+        transport = effects_of(sc).moving_belt
 
         def at(r):
             vv = drive.belt_speed(sc, r)
@@ -296,7 +297,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     if reference is not None and ("modal" in outputs or "campbell" in outputs):
         refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
-    opts = _Options(outputs=outputs, modes=modes, gyro=scene.model.has("transport") and moving, track=track)
+    opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
     pre = _precheck(scene, values, n)
     invalid = pre != _CODE["ok"]
