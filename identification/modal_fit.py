@@ -236,7 +236,7 @@ class ModalFit:
             "rms_residual_hz": self.rms_residual_hz,
             "frequency_std_hz": self.sigma_hz,
             "frequency_std_estimated_from_residuals": self.sigma_estimated,
-            "optimizer": "Levenberg-Marquardt (exact forward-mode Jacobian)",
+            "optimizer": "optimistix Levenberg-Marquardt (exact forward-mode Jacobian)",
             "iterations": self.iterations,
             "matching_rounds": self.rounds,
             "loss_history": [float(x) for x in self.loss_history],

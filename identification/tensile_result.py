@@ -221,7 +221,7 @@ class TensileFit:
             "reduced_chi2": self.chi2 / self.dof if self.dof > 0 else None,
             "covariance_scale": self.covariance_scale,
             "warnings": self.warnings,
-            "optimizer": f"optax.lbfgs ({self.lbfgs_steps} steps) then Levenberg-Marquardt, "
+            "optimizer": f"optax.lbfgs ({self.lbfgs_steps} steps) then optimistix Levenberg-Marquardt, "
                          f"{self.starts} deterministic starts",
             "loss_history_length": len(self.loss_history),
             "final_loss": float(self.loss_history[-1]),

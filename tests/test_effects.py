@@ -78,3 +78,26 @@ def test_unlisted_effects_leave_no_trace(fidelity):
         # and nothing else the program used is lost
         others = {k for k, v in every.items() if v} - set(_owned(every, effect))
         assert {k for k in others if not without[k]} == set(), effect
+
+
+def test_effects_are_switched_in_the_assembly_only():
+    """Every listable effect is one module of beltjax.drive.effects, and no other module of the
+    package asks the scene's model whether an effect is listed (issue 21: effect switching lives
+    in the assembly, effects_of)."""
+    import re
+
+    from beltjax.drive import effects
+    from beltjax.scene import EFFECTS
+
+    assert tuple(effects.MODULES) == EFFECTS
+    root = pathlib.Path(drive.__file__).resolve().parents[1]
+    offenders = [f"{p.relative_to(root)}:{i + 1}" for p in sorted(root.rglob("*.py"))
+                 for i, line in enumerate(p.read_text().splitlines())
+                 if re.search(r"model\.has\(|in\s+\w+\.model\.effects", line)
+                 and p.name != "effects.py" and "def has" not in line]
+    assert offenders == [], offenders
+    # the assembly is built once per list of names and holds only the listed modules
+    sc = loads_scene(scene_text("sim_tensioner_fluctuation_load.toml"))
+    fx = effects.effects_of(sc)
+    assert fx is effects.effects_of(sc)
+    assert {type(m).name for m in fx.listed} == set(sc.model.effects)
