@@ -32,9 +32,10 @@ import numpy as np
 
 GAUSS_POINTS = 5
 _xg, _wg = np.polynomial.legendre.leggauss(GAUSS_POINTS)
-#: Gauss abscissae on [0, 1] and their weights (sum to 1).
-XI = jnp.asarray(0.5 * (_xg + 1.0))
-WEIGHTS = jnp.asarray(0.5 * _wg)
+#: Gauss abscissae on [0, 1] and their weights (sum to 1); numpy, so that importing beltjax does
+#: not start a JAX backend (the process set-up, beltjax.runtime, must come first)
+XI = 0.5 * (_xg + 1.0)
+WEIGHTS = 0.5 * _wg
 
 BENDING_MODELS = ("linear", "exact")
 

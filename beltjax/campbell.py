@@ -32,17 +32,12 @@ DEFAULT_ORDERS = (1.0, 2.0, 3.0)
 
 @partial(jax.jit, static_argnames=("n_modes",))
 def _batch(scene: Scene, speeds, n_modes: int):
-    gyro = effects_of(scene).moving_belt
-    nr = drive_modal.n_rigid_modes(scene)
-
     def one(v):
         # speed stepping from rest: robust up to high speeds (the steady-state statics moves
         # the tensioner arm), cheap next to the eigen-solve
-        qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
-        M, G, K = drive_modal.linearise(qi, scene, inst, v)
-        stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyro, drive_modal.rigid_mode(scene, inst))
-        stable = stable & ~critical.supercritical(scene, qi, inst, v)  # past the critical speed: unstable
-        return f[:n_modes], stable, info[0] > 0.5
+        m = drive_modal.at_speed(scene, v, steps=statics.SPEED_STEPS)
+        stable = m.stable & ~m.supercritical  # past the critical speed: unstable
+        return m.freqs[:n_modes], stable, m.converged
 
     return jax.vmap(one)(speeds)
 
@@ -83,7 +78,7 @@ def _tracked_batch(scene: Scene, speeds, k: int):
     gyro = effects_of(scene).moving_belt
 
     def one(v):
-        qi, inst, info = statics.equilibrium(scene, speed=v, steps=4)
+        qi, inst, info = statics.equilibrium(scene, speed=v, steps=statics.SPEED_STEPS)
         out = drive_modal.tracking_shapes(scene, qi, inst, v, k, gyro)
         out["stable"] = out["stable"] & ~critical.supercritical(scene, qi, inst, v)  # past the critical speed
         out["converged"] = info[0] > 0.5

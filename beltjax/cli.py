@@ -112,20 +112,6 @@ def _modes(text):
     return n
 
 
-def _enable_compile_cache():
-    """JAX's persistent compilation cache for command-line runs (~/.cache/beltjax/jax)."""
-    import jax
-
-    cache = pathlib.Path(os.environ.get("BELTJAX_CACHE", pathlib.Path.home() / ".cache" / "beltjax" / "jax"))
-    try:
-        cache.mkdir(parents=True, exist_ok=True)
-        jax.config.update("jax_compilation_cache_dir", str(cache))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-        jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-    except Exception:  # a read-only home: run without the cache
-        pass
-
-
 def cmd_span(args) -> int:
     """Run the span analysis, print the table, write span.json and span_modes.png."""
     from beltjax import analyse_span
@@ -410,8 +396,9 @@ def main(argv=None) -> int:
     created when it did not exist).  Any error ends an open progress line first, so that
     ``beltjax: error: ...`` starts a line of its own.
     """
-    from beltjax import outputs, progress
+    from beltjax import outputs, progress, runtime
 
+    runtime.configure()  # before the first JAX computation (a no-op when called in a running process)
     debug = os.environ.get("BELTJAX_DEBUG") == "1"
     try:
         args = build_parser().parse_args(argv)
@@ -420,7 +407,7 @@ def main(argv=None) -> int:
         for name in ("scene", "spec", "data"):
             if getattr(args, name, None) == "":
                 raise InputError(f"argument {name}: empty file name")
-        _enable_compile_cache()
+        runtime.enable_compile_cache()
         with outputs.staged(args.out) as stage:
             code = args.func(args)
         progress.end_line()

@@ -50,6 +50,12 @@ from beltjax.drive.effects import effects_of
 #: largest installation strain accepted (2 %, far beyond any belt's working strain): a
 #: belt that would need more "cannot be fitted"
 MAX_INSTALL_STRAIN = 0.02
+#: the one retry policy of the statics: Newton from the installed state, and where it fails, again
+#: with the speed (and its centrifugal and tensioner load) stepped from rest in RETRY_STEPS steps
+#: (analyse_statics, solve_at, the sweeps); a batch over speeds (Campbell diagrams) steps every
+#: speed from rest in SPEED_STEPS steps at once
+RETRY_STEPS = 8
+SPEED_STEPS = 4
 #: arm angles scanned for the tensioner balance (rad, either side of the guess)
 _ARM_GRID = 1440
 
@@ -170,11 +176,24 @@ def check_solved(scene: Scene, tension_N: float, arm_angle_deg: float | None = N
     raise StaticsError(msg)
 
 
+def installation_faults(scene: Scene, inst: Installation) -> dict:
+    """Whether the belt cannot be installed, by cause (JAX bools; pure, vmappable): the one
+    installability test of statics, sweeps and optimisation.  no_arm_balance: no tensioner arm
+    angle balances the spring; belt_slack: the unstretched belt is not shorter than its path;
+    belt_overstretched: it stretches more than MAX_INSTALL_STRAIN to go round."""
+    lam = inst.stretch
+    return dict(no_arm_balance=jnp.asarray(scene.tensioner is not None) & ~jnp.isfinite(inst.arm_angle),
+                belt_slack=~jnp.isfinite(lam) | (lam <= 1.0),
+                belt_overstretched=lam - 1.0 > MAX_INSTALL_STRAIN)
+
+
 def check_installation(scene: Scene, inst: Installation) -> None:
-    """Raise :class:`StaticsError` (one line) if the belt cannot be installed as given."""
+    """Raise :class:`StaticsError` (one line, naming the cause of :func:`installation_faults`)
+    if the belt cannot be installed as given."""
     b = scene.belt
     key = "belt.length" if b.length is not None else "belt.static_tension"
-    if scene.tensioner is not None and not math.isfinite(float(inst.arm_angle)):
+    faults = {k: bool(v) for k, v in installation_faults(scene, inst).items()}
+    if faults["no_arm_balance"]:
         th = _arm_guess(scene) + jnp.linspace(-jnp.pi, jnp.pi, _ARM_GRID + 1)
         path, _, wrap = jax.vmap(lambda x: _arm_terms(x, scene))(th)
         r = jax.vmap(lambda x: _arm_residual(x, scene))(th)
@@ -201,13 +220,13 @@ def check_installation(scene: Scene, inst: Installation) -> None:
             key,
         )
     lam = float(inst.stretch)
-    if not math.isfinite(lam) or lam <= 1.0:
+    if faults["belt_slack"]:
         raise StaticsError(
             f"belt too long to fit: the unstretched length {float(inst.belt_length):.6g} m is not shorter "
             f"than the belt path {float(inst.belt_length * inst.stretch):.6g} m, so the belt would hang slack",
             key,
         )
-    if lam - 1.0 > MAX_INSTALL_STRAIN:
+    if faults["belt_overstretched"]:
         raise StaticsError(
             f"belt too short to fit: it would have to stretch {100 * (lam - 1):.3g} % (tension "
             f"{float(inst.tension):.4g} N) to reach round the pulleys (limit {100 * MAX_INSTALL_STRAIN:.3g} %)",
@@ -380,11 +399,11 @@ def static_outputs(scene, qi, inst, speed):
 
 def solve_at(scene: Scene, v: float):
     """(:func:`static_outputs` at belt speed v (m/s), converged (bool), Newton iterations,
-    residual norm) of the (canonical) scene; speed stepping (8 steps) when Newton from the
-    installed state fails.  Compiled once per scene structure (v is traced)."""
+    residual norm) of the (canonical) scene; speed stepping when Newton from the
+    installed state fails (:data:`RETRY_STEPS`).  Compiled once per scene structure (v is traced)."""
     out, (conv, it, rn) = _statics_core(scene, v)
     if not float(conv) > 0.5:
-        out, (conv, it, rn) = _statics_core(scene, v, steps=8)
+        out, (conv, it, rn) = _statics_core(scene, v, steps=RETRY_STEPS)
     return out, float(conv) > 0.5, int(it), float(rn)
 
 

@@ -25,6 +25,9 @@ import jax
 import numpy as np
 
 import beltjax  # noqa: F401  (enables float64)
+from beltjax import runtime
+
+runtime.configure()  # XLA's CPU pool and thread settings, before the first JAX computation
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"

@@ -6,6 +6,9 @@ import pathlib
 import pytest
 
 import beltjax  # noqa: F401  (enables float64 before any array is made)
+from beltjax import runtime
+
+runtime.configure()  # XLA's CPU pool and thread settings, before the first JAX computation
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 REFERENCE = REPO.parent / "shared" / "reference" / "thesis_reference.json"
@@ -28,7 +31,7 @@ def strip(ref):
 @pytest.fixture(autouse=True)
 def _persistent_compile_cache_off_after_each_test():
     """The in-process command-line tests switch JAX's persistent compilation cache on for the
-    whole process (beltjax.cli._enable_compile_cache, every compilation written to disk);
+    whole process (beltjax.runtime.enable_compile_cache, every compilation written to disk);
     switch it off again after each test, so that the rest of the suite compiles in memory only.
     Left on, a full run wrote every later compilation to disk, and twice in a row aborted
     inside JAX's cache write (put_executable_and_time) in test_sweep, 85 % into the run."""

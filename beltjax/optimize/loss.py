@@ -52,12 +52,12 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
         force = critical.span_forces(sc, qv, inst, v)  # <= 0: at or past the critical speed
         if rpm.shape[0] == 0:
             return qv, jnp.zeros(0), jnp.zeros(0), iv[0] > 0.5, force
-        M, G, K = drive_modal.linearise(qv, sc, inst, v)
         if span:
+            M, G, K = drive_modal.linearise(qv, sc, inst, v)
             J = jax.jacfwd(lambda y: drive.full_coordinates(y, sc, inst))(qv)
             stable, f, w = modes.frequencies_and_span_weights(M, G, K, J, nr, gyro, v_rigid, sc, inst)
         else:
-            stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyro, v_rigid)
+            stable, f, *_ = drive_modal.frequencies_about(sc, qv, inst, v, gyro)
             w = jnp.ones_like(f)
         return qv, f, w, stable & (iv[0] > 0.5), force
 
@@ -81,8 +81,7 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
         freqs_hz=freqs[1:], span_weights=weights[1:], qi_speeds=qs[1:], good=good[1:], span_force_N=force,
         qi=qi, q=q,
     )
-    lam = inst.stretch
-    ok = (jnp.isfinite(inst.arm_angle) & (lam > 1.0) & (lam - 1.0 <= statics.MAX_INSTALL_STRAIN)
+    ok = (~jnp.any(jnp.stack(list(statics.installation_faults(sc, inst).values())))
           & jnp.all((inst.wrap > 0) & (inst.wrap < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0)
           & jnp.all(force > 0))
     finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in m.values()]))

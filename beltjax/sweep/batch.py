@@ -50,12 +50,10 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     v = drive.belt_speed(sc)
     qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps)
     out = statics.static_outputs(sc, qi, inst, v)
-    lam = inst.stretch
-    conds = [~jnp.isfinite(lam) | (lam <= 1.0), lam - 1.0 > statics.MAX_INSTALL_STRAIN]
-    codes = [_CODE["belt_slack"], _CODE["belt_overstretched"]]
-    if sc.tensioner is not None:
-        conds.insert(0, ~jnp.isfinite(inst.arm_angle))
-        codes.insert(0, _CODE["no_arm_balance"])
+    faults = statics.installation_faults(sc, inst)
+    names = ["no_arm_balance", "belt_slack", "belt_overstretched"]
+    conds = [faults[k] for k in names]
+    codes = [_CODE[k] for k in names]
     conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
     codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
     res: dict[str, jax.Array] = {}
@@ -69,7 +67,6 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     res["installation_tension_N"] = inst.tension  # evaluate checks each case's solved installation
     if sc.tensioner is not None:
         res["tensioner_angle_deg"] = jnp.rad2deg(out["theta"])
-    nr = drive_modal.n_rigid_modes(sc)
     stable = jnp.asarray(True)
     if "modal" in outputs:
         if track:
@@ -77,8 +74,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             stable, f = t["stable"], t["freqs"]
             res["modal_W"], res["modal_owner"] = t["W"], t["owner"]
         else:
-            M, G, K = drive_modal.linearise(qi, sc, inst, v)
-            stable, f = drive_modal.frequencies_from_matrices(M, G, K, nr, gyroscopic, drive_modal.rigid_mode(sc, inst))
+            stable, f, *_ = drive_modal.frequencies_about(sc, qi, inst, v, gyroscopic)
             f = f[:modes]
         res["frequencies_hz"] = jnp.where(stable, f, jnp.nan)
         res["stable"] = stable
@@ -87,15 +83,14 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
 
         def at(r):
             vv = drive.belt_speed(sc, r)
-            q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=4)
             if track:
+                q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=statics.SPEED_STEPS)
                 t = drive_modal.tracking_shapes(sc, q2, inst2, vv, track, transport, full=False)
                 ok = t["stable"] & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
                 return jnp.where(ok, t["freqs"], jnp.nan), ok, t["W"], t["owner"]
-            M, G, K = drive_modal.linearise(q2, sc, inst2, vv)
-            ok, f = drive_modal.frequencies_from_matrices(M, G, K, nr, transport, drive_modal.rigid_mode(sc, inst2))
-            ok = ok & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
-            return jnp.where(ok, f[:modes], jnp.nan), ok
+            m = drive_modal.at_speed(sc, vv, inst, steps=statics.SPEED_STEPS, gyroscopic=transport)
+            ok = m.stable & m.converged & ~m.supercritical
+            return jnp.where(ok, m.freqs[:modes], jnp.nan), ok
 
         got = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
         res["campbell_hz"], res["campbell_stable"] = got[:2]
@@ -201,14 +196,14 @@ def _matrix(values: Mapping[str, np.ndarray], keys: tuple[str, ...], size: int) 
 def _run_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options,
                size: int, devices: tuple | None) -> dict[str, np.ndarray]:
     """One chunk (<= size cases), padded to ``size``; cases whose statics did not converge are
-    run again with speed stepping (8 steps), as :func:`beltjax.statics.analyse_statics` does."""
+    run again with speed stepping (statics.RETRY_STEPS), as :func:`beltjax.statics.analyse_statics` does."""
     keys = tuple(sorted(values))
     X = _matrix(values, keys, size)
     n = len(next(iter(values.values())))
     out = {k: np.array(np.asarray(a)[:n]) for k, a in _batch_fn(opts, devices, keys)(scene, X, rpm).items()}
     again = np.flatnonzero(out["code"] == _CODE["not_converged"])
     if again.size:
-        fn8 = _batch_fn(dataclasses.replace(opts, steps=8), devices, keys)
+        fn8 = _batch_fn(dataclasses.replace(opts, steps=statics.RETRY_STEPS), devices, keys)
         redo = fn8(scene, _matrix({k: np.asarray(values[k])[again] for k in keys}, keys, size), rpm)
         for k in out:
             out[k][again] = np.asarray(redo[k])[: again.size]

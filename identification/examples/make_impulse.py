@@ -38,6 +38,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import beltjax  # noqa: F401  (float64)
+from beltjax import runtime
+
+runtime.configure()  # threads and XLA pool before the first JAX computation
 from beltjax import drive, drive_modal, statics, transient
 from beltjax.scene import loads_scene
 
