@@ -8,7 +8,6 @@ argument or the cause, and a non-zero exit status; no tracebacks (set
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import pathlib
@@ -18,6 +17,7 @@ from beltjax.errors import BeltjaxError, InputError
 from beltjax.summaries import (_panels_note, campbell_summary, modal_table, simulation_table, span_table,  # noqa: F401
                                statics_table)
 from beltjax.drive.effects import effects_of
+from beltjax import outputs
 
 
 class _Parser(argparse.ArgumentParser):
@@ -127,7 +127,7 @@ def cmd_span(args) -> int:
     for f in data["frequencies_hz"]:
         if not math.isfinite(f):
             raise RuntimeError("the eigen-analysis produced a non-finite frequency")
-    (out / "span.json").write_text(json.dumps(data, indent=2))
+    outputs.write_json(out / "span.json", data)
     plot_span_modes(result, out / "span_modes.png")
     print(span_table(result))
     return 0
@@ -189,7 +189,7 @@ def cmd_statics(args) -> int:
     data = res.to_json()
     if not all(math.isfinite(x) for x in data["span_tensions_N"]):
         raise RuntimeError("the statics produced a non-finite span tension")
-    (out / "statics.json").write_text(json.dumps(data, indent=2))
+    outputs.write_json(out / "statics.json", data)
     plot_layout(scene, res, out / "layout.png")
     print(f"statics of {_title(scene, args.scene)}")
     print(statics_table(res))
@@ -208,7 +208,7 @@ def cmd_modal(args) -> int:
     data = m.to_json(n_modes=args.modes)
     if not all(math.isfinite(x) for x in data["frequencies_hz"]):
         raise RuntimeError("the eigen-analysis produced a non-finite frequency")
-    (out / "modal.json").write_text(json.dumps(data, indent=2))
+    outputs.write_json(out / "modal.json", data)
     plot_drive_modes(scene, m, out / "modes.png", n_modes=args.modes, pool=args.modes)
     rpm = "" if args.rpm is None else f" ({args.rpm:g} rpm of the drive pulley)"
     print(f"modes of {_title(scene, args.scene)}")
@@ -232,7 +232,7 @@ def cmd_campbell(args) -> int:
 
     c = _analysis(campbell.analyse_campbell, scene, args.rpm, orders=args.orders, n_modes=args.modes,
                   progress=progress)
-    (out / "campbell.json").write_text(json.dumps(c.to_json(), indent=2))
+    outputs.write_json(out / "campbell.json", c.to_json())
     plot_campbell(c, out / "campbell.png", title=_title(scene, args.scene))
     print(f"Campbell diagram of {_title(scene, args.scene)}")
     print(campbell_summary(c))
@@ -254,7 +254,7 @@ def cmd_simulate(args) -> int:
     summary = res.summary(settle_fraction=args.settle)
     summary["scene"] = str(args.scene)
     res.save_npz(out / "simulation.npz")
-    (out / "simulation.json").write_text(json.dumps(summary, indent=2))
+    outputs.write_json(out / "simulation.json", summary)
     title = _title(scene, args.scene)
     plot_simulation(res.t, res.channels, res.columns, transient.UNITS, out / "simulation.png", title=title)
     plot_spectra(res.t, res.channels, res.columns, transient.UNITS, out / "spectra.png", title=title,
@@ -396,7 +396,7 @@ def main(argv=None) -> int:
     created when it did not exist).  Any error ends an open progress line first, so that
     ``beltjax: error: ...`` starts a line of its own.
     """
-    from beltjax import outputs, progress, runtime
+    from beltjax import progress, runtime
 
     runtime.configure()  # before the first JAX computation (a no-op when called in a running process)
     debug = os.environ.get("BELTJAX_DEBUG") == "1"

@@ -20,10 +20,14 @@ final paths once the move has succeeded.
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 import os
 import pathlib
 import shutil
 import tempfile
+
+import numpy as np
 
 from beltjax.errors import InputError
 
@@ -174,3 +178,26 @@ def wrote(paths) -> None:
     (its caller prints the final paths after the move)."""
     if active() is None:
         print(written_line(paths))
+
+
+def jsonable(x):
+    """``x`` with numpy scalars and arrays as Python numbers and lists, and every non-finite float
+    as None (JSON has no NaN or infinity: a strict reader would reject the file)."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return jsonable(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(float(x)) else None
+    return x
+
+
+def write_json(path: pathlib.Path, data) -> None:
+    """The one results writer: ``data`` as strict JSON (:func:`jsonable`), indented, at ``path``."""
+    pathlib.Path(path).write_text(json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n")

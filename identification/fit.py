@@ -18,10 +18,10 @@ scene) and each section's plots into the output folder.
 
 from __future__ import annotations
 
-import json
 import pathlib
 
 from beltjax import textfile
+from beltjax import outputs
 from identification.data import DataError
 
 
@@ -76,9 +76,8 @@ def run(path: pathlib.Path, out: pathlib.Path) -> int:
         report[name] = res.to_json()
         blocks.append(f"# ---- from [{name}] of {path.name}\n{res.scene_block()}")
         files += res.plot(out)
-    (out / "fit.json").write_text(json.dumps(report, indent=2))
+    outputs.write_json(out / "fit.json", report)
     (out / "fitted_parameters.toml").write_text("\n\n".join(blocks) + "\n")
-    from beltjax import outputs
 
     print()
     outputs.wrote([out / "fit.json", out / "fitted_parameters.toml", *files])

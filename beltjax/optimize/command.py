@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import pathlib
 import time
 
@@ -14,6 +13,7 @@ from beltjax.optimize.report import (_describe_constraint, _value_text, check, c
                                      relevant_modes, unmet)
 from beltjax.optimize.scenefile import _verify_scene_text, edit_scene_text
 from beltjax.optimize.solver import OptimizeResult, optimise
+from beltjax import outputs
 
 #: exit status of ``beltjax optimize`` when the run ended without meeting its goal (2: bad input)
 GOAL_NOT_MET = 3
@@ -71,7 +71,6 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     """
     from beltjax.plotting import plot_layout
 
-    from beltjax import outputs
     from beltjax.progress import Reporter, message
 
     t0 = time.perf_counter()
@@ -140,7 +139,7 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
         wall_s=wall, optimisation_s=res.wall_s, first_evaluation_s=res.compile_s, check_s=check_s,
         outputs=files, note=note,
     )
-    (out / "optimize.json").write_text(json.dumps(data, indent=2))
+    outputs.write_json(out / "optimize.json", data)
     print(f"optimised {title} with {spec_path}")
     tried = f"{len(res.starts)} starts, " if len(res.starts) > 1 else ""
     best = res.history[res.best_index]

@@ -106,8 +106,9 @@ def _floats(d: dict) -> dict:
 
 def _decay(step: int, steps: int) -> float:
     """Cosine decay of the learning rate from 1 to 0.1 over the step budget (damps Adam's
-    oscillation about a kink or an active penalty)."""
-    return 0.1 + 0.45 * (1.0 + math.cos(math.pi * min(step, steps) / steps))
+    oscillation about a kink or an active penalty): optax's cosine schedule,
+    0.1 + 0.45 (1 + cos(pi min(step, steps) / steps))."""
+    return float(optax.cosine_decay_schedule(1.0, steps, alpha=0.1)(step))
 
 
 def _primes(n: int) -> list[int]:

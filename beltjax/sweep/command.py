@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -17,8 +16,9 @@ from beltjax.scene import Scene
 from beltjax.sweep.spec import cases, load_spec
 from beltjax.sweep.batch import _chunk_size, _devices, evaluate
 from beltjax.sweep.dask_backend import _dask_client_check
-from beltjax.sweep.tables import _jsonable, columns, report, summary_table, write_campbell_csv, write_csv
+from beltjax.sweep.tables import columns, report, summary_table, write_campbell_csv, write_csv
 from beltjax.sweep.figures import plots
+from beltjax import outputs
 
 
 def progress_bar(label: str = "sweep") -> Callable[[int, int], None]:
@@ -72,7 +72,7 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
     data = report(scene, spec, values, result, nominal, timing)
     cols = columns(scene, result)
     write_csv(out / "sweep.csv", values, cols, result["status"])
-    (out / "sweep.json").write_text(json.dumps(_jsonable(data), indent=2) + "\n")
+    outputs.write_json(out / "sweep.json", data)
     files = [out / "sweep.csv", out / "sweep.json"]
     if "campbell_hz" in result:
         write_campbell_csv(out / "sweep_campbell.csv", result)

@@ -152,17 +152,4 @@ def _columns_meaning(result: Mapping[str, Any]) -> str | None:
                 "(mass-weighted MAC, optimal assignment; NaN: not found); mode_match: a case's lowest MAC")
     return "f<k>_hz: the k-th lowest frequency of each case (sorted: the nominal scene has no modes to follow)"
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(float(x)) else None
-    return x
+from beltjax.outputs import jsonable as _jsonable  # noqa: E402,F401  (the one converter)
