@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, drive_modal, mode_tracking, statics
+from beltjax import drive, drive_modal, mode_tracking, statics
 from beltjax.scene import Scene
 from beltjax.drive.effects import effects_of
 
@@ -78,10 +78,10 @@ def _tracked_batch(scene: Scene, speeds, k: int):
     gyro = effects_of(scene).moving_belt
 
     def one(v):
-        qi, inst, info = statics.equilibrium(scene, speed=v, steps=statics.SPEED_STEPS)
-        out = drive_modal.tracking_shapes(scene, qi, inst, v, k, gyro)
-        out["stable"] = out["stable"] & ~critical.supercritical(scene, qi, inst, v)  # past the critical speed
-        out["converged"] = info[0] > 0.5
+        m = drive_modal.at_speed(scene, v, steps=statics.SPEED_STEPS, gyroscopic=gyro, track=k, full=True)
+        out = dict(m.tracking)
+        out["stable"] = out["stable"] & ~m.supercritical  # past the critical speed
+        out["converged"] = m.converged
         return out
 
     return jax.vmap(one)(speeds)

@@ -215,22 +215,31 @@ class SpeedModes(NamedTuple):
     supercritical: jax.Array
     stable: jax.Array
     freqs: jax.Array
-    M: jax.Array
-    G: jax.Array
-    K: jax.Array
+    M: jax.Array | None
+    G: jax.Array | None
+    K: jax.Array | None
+    tracking: dict | None = None
 
 
-def at_speed(scene: Scene, speed, inst=None, steps: int = 1, gyroscopic: bool | None = None) -> SpeedModes:
+def at_speed(scene: Scene, speed, inst=None, steps: int = 1, gyroscopic: bool | None = None, track: int = 0,
+             full: bool = False) -> SpeedModes:
     """Statics -> linearisation -> frequencies at belt speed ``speed`` (m/s): the one pipeline
     of modal analysis, Campbell diagrams, sweeps, optimisation and the modal fit.
 
     inst: the installation (default: solved from the scene); steps: speed steps of the statics
     from rest; gyroscopic: whether G enters the eigen-problem (default: the belt moves, i.e.
-    ``transport`` is listed).  Pure, vmappable, differentiable (statics by implicit
+    ``transport`` is listed).  With ``track`` = k > 0 the lowest k modes come from the tracking
+    eigen-solver with their shapes (:func:`tracking_shapes`, ``full`` as there) in ``tracking``,
+    and M, G, K are None.  Pure, vmappable, differentiable (statics by implicit
     differentiation, symmetric eigenvalues)."""
     qi, inst, info = statics.equilibrium(scene, inst, speed=speed, steps=steps)
+    sup = critical.supercritical(scene, qi, inst, speed)
+    if track:
+        gyro = effects_of(scene).moving_belt if gyroscopic is None else gyroscopic
+        t = tracking_shapes(scene, qi, inst, speed, track, gyro, full=full)
+        return SpeedModes(qi, inst, info[0] > 0.5, sup, t["stable"], t["freqs"], None, None, None, t)
     stable, f, M, G, K = frequencies_about(scene, qi, inst, speed, gyroscopic)
-    return SpeedModes(qi, inst, info[0] > 0.5, critical.supercritical(scene, qi, inst, speed), stable, f, M, G, K)
+    return SpeedModes(qi, inst, info[0] > 0.5, sup, stable, f, M, G, K)
 
 
 def frequencies_about(scene: Scene, qi, inst, speed, gyroscopic: bool | None = None):

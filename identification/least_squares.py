@@ -51,8 +51,23 @@ class Solution(NamedTuple):
     jacobian: jax.Array
 
 
-def _dense_jvp(f, y):
-    """f(y) whose linearisation is the dense Jacobian times the tangent.
+@eqx.filter_jit
+def _value_and_jacobian(residual, y, inner, scale):
+    """r(y / scale, inner) and its Jacobian d r / d y, by one forward pass (the value rides along
+    as aux).  Jitted on its own so that the solver's three traces of the residual (the output
+    structure, the solver's init and its step) share one trace: through the modal fit's statics
+    and eigenvalues a trace costs seconds."""
+
+    def value_twice(v):
+        out = residual(v / scale, inner)
+        return out, out
+
+    J, val = jax.jacfwd(value_twice, has_aux=True)(y)
+    return val, J
+
+
+def _dense_jvp(residual, y, inner, scale):
+    """r(y / scale, inner) whose linearisation is the dense Jacobian times the tangent.
 
     optimistix linearises the residual (``jax.linearize``) and its linear solves materialise that
     linear map column by column, once per solve (2-3 per step).  Through the modal fit's statics
@@ -63,13 +78,13 @@ def _dense_jvp(f, y):
 
     @jax.custom_jvp
     def g(y):
-        return f(y)
+        return _value_and_jacobian(residual, y, inner, scale)[0]
 
     @g.defjvp
     def g_jvp(primals, tangents):
         (yp,), (ty,) = primals, tangents
-        J, fp = jax.jacfwd(lambda v: (f(v), f(v)), has_aux=True)(yp)  # the value as aux: one pass
-        return fp, J @ ty
+        val, J = _value_and_jacobian(residual, yp, inner, scale)
+        return val, J @ ty
 
     return g(y)
 
@@ -81,7 +96,7 @@ class _Scaled(eqx.Module):
 
     def __call__(self, y, args):
         inner, scale = args
-        return _dense_jvp(lambda yy: self.residual(yy / scale, inner), y), None
+        return _dense_jvp(self.residual, y, inner, scale), None
 
 
 def _host_report(step, loss):

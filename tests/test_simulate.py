@@ -145,7 +145,7 @@ def _energy_fn(scene, inst):
             Ed = v[:ns].reshape(E.shape)
             c = drive.transient_transport_speed(scene, inst, v, 0.0)[0]
             K = K + sum(span.span_kinetic_energy(E[s], Ed[s], c, rhoA, L0[s], idx) for s in range(E.shape[0]))
-            V = sum(drive._span_potential(E[s], drive.section(scene), L0[s], idx, scene.model.bending, gravity)
+            V = sum(drive._span_potential(E[s], drive.section(scene), L0[s], idx, scene.model.bending, drive.effects_of(scene))
                     for s in range(E.shape[0]))
             if gravity:
                 phi, _ = drive.angles_and_arm(qi, scene, inst)

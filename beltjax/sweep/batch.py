@@ -83,13 +83,10 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
 
         def at(r):
             vv = drive.belt_speed(sc, r)
-            if track:
-                q2, inst2, info = statics.equilibrium(sc, inst, speed=vv, steps=statics.SPEED_STEPS)
-                t = drive_modal.tracking_shapes(sc, q2, inst2, vv, track, transport, full=False)
-                ok = t["stable"] & (info[0] > 0.5) & ~critical.supercritical(sc, q2, inst2, vv)
-                return jnp.where(ok, t["freqs"], jnp.nan), ok, t["W"], t["owner"]
-            m = drive_modal.at_speed(sc, vv, inst, steps=statics.SPEED_STEPS, gyroscopic=transport)
+            m = drive_modal.at_speed(sc, vv, inst, steps=statics.SPEED_STEPS, gyroscopic=transport, track=track)
             ok = m.stable & m.converged & ~m.supercritical
+            if track:
+                return jnp.where(ok, m.freqs, jnp.nan), ok, m.tracking["W"], m.tracking["owner"]
             return jnp.where(ok, m.freqs[:modes], jnp.nan), ok
 
         got = jax.vmap(at)(jnp.asarray(rpm, dtype=jnp.float64))
