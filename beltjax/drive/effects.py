@@ -2,8 +2,9 @@
 
 Each effect is an :class:`Effect` (an equinox module) that says which scene parameters it owns
 and contributes through one small interface: a span's potential (J), a span's generalised
-forces (N), the bodies' forces (N, N m), the drive pulley's angle (rad), the centre of mass of
-a pulley.  An effect that is not listed is not in the assembly and adds nothing (not even
+forces (N), the bodies' forces (N, N m), the drive pulley's angle (rad).  (Unbalance and the
+bodies' weights are still applied where the kinematics and the body forces need the
+installation; they ask the assembly whether the effect is listed.)  An effect that is not listed is not in the assembly and adds nothing (not even
 a zero) to any traced program: :func:`effects_of` is the one place where the names in
 ``model.effects`` are switched, and the one place that maps a name to a module.
 
@@ -37,6 +38,8 @@ class Effect(eqx.Module):
     """One effect: its name, the parameters it owns, and what it contributes (nothing by default)."""
 
     name: ClassVar[str] = ""
+    #: whether its span forces dissipate (left out of the conservative statics and modal forces)
+    dissipative: ClassVar[bool] = False
 
     def given(self, scene: Scene) -> list[str]:
         """Keys of this effect's parameters that ``scene`` gives a non-zero value."""
@@ -99,6 +102,7 @@ class BeltDamping(Effect):
     on ANCF spans, CA / L0 dl/dt on bars."""
 
     name: ClassVar[str] = "belt_damping"
+    dissipative: ClassVar[bool] = True
 
     def given(self, scene):
         return ["belt.CA"] if float(scene.belt.CA) > 0 else []
@@ -195,7 +199,7 @@ class Effects(eqx.Module):
         """Sum of the listed effects' span forces (N), or None; damping only when ``dissipative``."""
         out = None
         for x in self.listed:
-            if not dissipative and isinstance(x, BeltDamping):
+            if x.dissipative and not dissipative:
                 continue
             f = x.span_forces(e, e_dot, c, c_dot, scene, Le, idx)
             if f is not None:
