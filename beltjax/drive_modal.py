@@ -75,17 +75,8 @@ def rigid_mode(scene: Scene, inst):
     free = drive.is_free(scene)
     senses = np.asarray(scene.route.senses)
     rigid = [1.0 / (senses[i] * inst.radii[i]) for i, f in enumerate(free) if f]
-    if scene.tensioner is not None:
-        rigid.append(jnp.zeros(()))
-    if not drive.flexible(scene):
-        return jnp.stack(rigid)
-    N = scene.model.elements_per_span
-    n = len(scene.route.order)
-    node = jnp.concatenate([inst.span_tangent, jnp.zeros((n, 2))], axis=1)  # (n, 4): position, slope
-    spans = jnp.concatenate(
-        [jnp.zeros((n, 2)), jnp.tile(node, (1, N - 1)), jnp.zeros((n, 2))], axis=1
-    )
-    return jnp.concatenate([jnp.stack(rigid), spans.reshape(-1)])
+    rigid += [jnp.zeros(())] * drive.layout_of(scene).coordinates  # the arm does not move
+    return jnp.concatenate([jnp.stack(rigid), drive.spans_of(scene).rigid_slide(inst.span_tangent)])
 
 
 def _complement(w):

@@ -81,7 +81,7 @@ def full_energy_shares(V, scene: Scene, arrays: dict):
     shares, trans, longi = {}, [], []
     names = drive.span_names(scene)
     for s in range(n):
-        Ms = np.asarray(span.span_component_mass(float(scene.belt.rhoA) if drive.flexible(scene) else 0.0,
+        Ms = np.asarray(span.span_component_mass(float(drive.spans_of(scene).mass_per_length(scene.belt.rhoA)),
                                                    float(Le[s]), N))
         blk = V[s * ns : (s + 1) * ns].reshape(N + 1, 2, 2, -1)  # node, (pos, slope), (x, y), mode
         ul = np.einsum("nkdm,d->nkm", blk, t[s]).reshape(2 * (N + 1), -1)

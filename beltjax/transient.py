@@ -83,7 +83,7 @@ def default_output_dt(scene: Scene) -> float:
     """Default output interval (s): 5e-4 for the hybrid model (spectra to 1 kHz), 1e-3 rotational."""
     if scene.simulation.output_dt_s is not None:
         return scene.simulation.output_dt_s
-    return max(5e-4 if drive.flexible(scene) else 1e-3, default_dt(scene))
+    return max(drive.spans_of(scene).default_output_dt, default_dt(scene))
 
 
 def _rigid_index(scene: Scene) -> dict[str, int]:
@@ -100,23 +100,14 @@ def _rigid_index(scene: Scene) -> dict[str, int]:
 
 def _straighten(qi_new, qi_old, scene: Scene, inst) -> jax.Array:
     """Spans of qi_new moved so that each stays straight between its (moved) end nodes."""
-    if not drive.flexible(scene):
-        return qi_new
-    N = scene.model.elements_per_span
-    n = len(scene.route.order)
+    spans = drive.spans_of(scene)
     # the transient's map at t = 0 (a free drive pulley's rotation moves the belt with it)
     Ea, _ = drive.split_full(drive.full_coordinates(qi_old, scene, inst, t=0.0), scene)
     Eb, _ = drive.split_full(drive.full_coordinates(qi_new, scene, inst, t=0.0), scene)
     d0 = Eb[:, 0:2] - Ea[:, 0:2]
-    d1 = Eb[:, 4 * N : 4 * N + 2] - Ea[:, 4 * N : 4 * N + 2]
-    Lspan = drive.element_length(scene, inst) * N
-    x = jnp.linspace(0.0, 1.0, N + 1)
-    dpos = (1 - x)[None, :, None] * d0[:, None, :] + x[None, :, None] * d1[:, None, :]
-    dslope = jnp.broadcast_to(((d1 - d0) / Lspan[:, None])[:, None, :], (n, N + 1, 2))
-    dnodes = jnp.concatenate([dpos, dslope], axis=-1).reshape(n, 4 * (N + 1))
-    dspans = jnp.concatenate([dnodes[:, 2 : 4 * N], dnodes[:, 4 * N + 2 :]], axis=1)
-    nr = drive.n_rigid(scene)
-    return qi_new.at[nr:].add(dspans.reshape(-1))
+    d1 = Eb[:, -4:-2] - Ea[:, -4:-2]
+    Lspan = drive.element_length(scene, inst) * spans.elements
+    return qi_new.at[drive.n_rigid(scene):].add(spans.straight_shift(d0, d1, Lspan))
 
 
 def initial_state(scene: Scene):
@@ -164,7 +155,7 @@ def default_solver(scene: Scene) -> str:
     ``generalized_alpha`` for the hybrid model (stiff: axial span modes of 1-2 kHz and above)."""
     if scene.simulation.solver is not None:
         return scene.simulation.solver
-    return "generalized_alpha" if drive.flexible(scene) else "dopri8"
+    return drive.spans_of(scene).default_solver
 
 
 def _solver(scene: Scene, dtmax=None):
@@ -279,7 +270,6 @@ class SimulationResult:
 
 
 #: largest slide of a span end node from its tangent point, in elements (hybrid model)
-MAX_SLIDE_ELEMENTS = 0.5
 
 
 def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
@@ -294,7 +284,7 @@ def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
     slide = np.abs(rim)
     Le = float(np.min(np.asarray(drive.element_length(scene, inst))))
     k = np.unravel_index(np.argmax(slide), slide.shape)
-    if slide[k] > MAX_SLIDE_ELEMENTS * Le:
+    if slide[k] > drive.spans_of(scene).slide_limit(Le):
         name = scene.route.order[k[1]]
         raise TransientError(
             f"pulley {name!r} turned {np.degrees(slide[k] / float(inst.radii[k[1]])):.3g} deg away from the belt's travel by "
@@ -443,11 +433,10 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     for k, v in chans.items():
         if not np.all(np.isfinite(v)):
             raise TransientError(f"output {k} is not finite: the run diverged")
-    if drive.flexible(scene):
-        _check_slide(scene, inst, chans["pulley_rotations_deg"], t)
+    _check_slide(scene, inst, chans["pulley_rotations_deg"], t)
     meta = dict(
         fidelity=scene.model.fidelity,
-        elements_per_span=scene.model.elements_per_span if drive.flexible(scene) else 0,
+        elements_per_span=drive.spans_of(scene).independent // 4,
         effects=list(scene.model.effects),
         n_independent=drive.n_independent(scene),
         solver=scene.simulation.solver,

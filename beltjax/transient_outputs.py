@@ -14,10 +14,10 @@ from beltjax.drive.effects import effects_of
 
 def output_nodes(scene: Scene) -> list[tuple[int, int, str]]:
     """(span index, node, label) of the span nodes whose displacement is recorded."""
-    if not drive.flexible(scene):
+    if drive.spans_of(scene).independent == 0:  # bars: no interior nodes
         return []
     names = drive.span_names(scene)
-    N = scene.model.elements_per_span
+    N = drive.spans_of(scene).elements
     chosen = scene.simulation.nodes
     if chosen is None:
         chosen = [f"{nm}:{N // 2}" for nm in names]

@@ -669,7 +669,7 @@ def _energy(sc, inst):
         qi, qd = y[:n], y[n:]
         M, _ = drive.reduced_system(qi, qd, sc, inst)
         E, _ = drive.split_full(drive.full_coordinates(qi, sc, inst), sc)
-        V = sum(drive._bar_energy(E[s], L0[s], sc.belt.EA, sc.belt.rhoA, 0.0) for s in range(E.shape[0]))
+        V = sum(drive.span_potential(E[s], s, sc, inst) for s in range(E.shape[0]))
         _, theta = drive.angles_and_arm(qi, sc, inst)
         V = V + 0.5 * t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg)) ** 2
         return 0.5 * qd @ M @ qd + V

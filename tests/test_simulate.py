@@ -145,13 +145,12 @@ def _energy_fn(scene, inst):
             Ed = v[:ns].reshape(E.shape)
             c = drive.transient_transport_speed(scene, inst, v, 0.0)[0]
             K = K + sum(span.span_kinetic_energy(E[s], Ed[s], c, rhoA, L0[s], idx) for s in range(E.shape[0]))
-            V = sum(drive._span_potential(E[s], drive.section(scene), L0[s], idx, scene.model.bending, drive.effects_of(scene))
-                    for s in range(E.shape[0]))
+            V = sum(drive.span_potential(E[s], s, scene, inst) for s in range(E.shape[0]))
             if gravity:
                 phi, _ = drive.angles_and_arm(qi, scene, inst)
                 V = V - jnp.sum(drive._belt_weight_slide_moments(scene, inst, True) * phi)
         else:
-            V = sum(drive._bar_energy(E[s], L0[s], EA, rhoA, 0.0) for s in range(E.shape[0]))
+            V = sum(drive.span_potential(E[s], s, scene, inst) for s in range(E.shape[0]))
         if gravity:
             V = V - drive.GRAVITY[1] * jnp.sum(mb.reshape(-1, 3)[:, 0] * B[:, 1])
         if scene.tensioner is not None:

@@ -49,8 +49,8 @@ class Effect(eqx.Module):
         """Potential of one ANCF span (J), or None."""
         return None
 
-    def span_forces(self, e, e_dot, c, c_dot, scene: Scene, Le, idx):
-        """Generalised forces on one ANCF span (N) in a transient, or None."""
+    def span_forces(self, e, e_dot, c, c_dot, belt, Le, idx):
+        """Generalised forces on one ANCF span (N) in a transient, or None (belt: the scene's belt)."""
         return None
 
     def body_forces(self, f, bodies, bodies_dot, scene: Scene, t):
@@ -67,8 +67,8 @@ class Transport(Effect):
 
     name: ClassVar[str] = "transport"
 
-    def span_forces(self, e, e_dot, c, c_dot, scene, Le, idx):
-        return span.span_inertial_forces(e, e_dot, c, c_dot, scene.belt.rhoA, Le, idx)
+    def span_forces(self, e, e_dot, c, c_dot, belt, Le, idx):
+        return span.span_inertial_forces(e, e_dot, c, c_dot, belt.rhoA, Le, idx)
 
 
 class Gravity(Effect):
@@ -107,8 +107,8 @@ class BeltDamping(Effect):
     def given(self, scene):
         return ["belt.CA"] if float(scene.belt.CA) > 0 else []
 
-    def span_forces(self, e, e_dot, c, c_dot, scene, Le, idx):
-        return -jax.grad(span_dissipation, argnums=1)(e, e_dot, scene.belt.CA, Le, idx)
+    def span_forces(self, e, e_dot, c, c_dot, belt, Le, idx):
+        return -jax.grad(span_dissipation, argnums=1)(e, e_dot, belt.CA, Le, idx)
 
 
 class BearingDamping(Effect):
@@ -195,13 +195,13 @@ class Effects(eqx.Module):
         terms = [u for u in (x.span_potential(e, rhoA, Le, idx) for x in self.listed) if u is not None]
         return sum(terms[1:], terms[0]) if terms else None
 
-    def span_forces(self, e, e_dot, c, c_dot, scene, Le, idx, dissipative: bool):
+    def span_forces(self, e, e_dot, c, c_dot, belt, Le, idx, dissipative: bool):
         """Sum of the listed effects' span forces (N), or None; damping only when ``dissipative``."""
         out = None
         for x in self.listed:
             if x.dissipative and not dissipative:
                 continue
-            f = x.span_forces(e, e_dot, c, c_dot, scene, Le, idx)
+            f = x.span_forces(e, e_dot, c, c_dot, belt, Le, idx)
             if f is not None:
                 out = f if out is None else out + f
         return out

@@ -12,7 +12,8 @@ import numpy as np
 
 from beltjax import ancf, span
 from beltjax.scene import Scene
-from beltjax.drive.topology import Installation, drive_pulley, element_length, flexible, n_rigid, n_span_coordinates, travel_coordinate, travel_follows_drive
+from beltjax.drive.topology import Installation, drive_pulley, element_length, n_rigid, n_span_coordinates, travel_coordinate, travel_follows_drive
+from beltjax.drive.spans import spans_of
 from beltjax.drive.effects import effects_of
 from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, full_coordinates, span_lengths_and_jacobian, split_full
 from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix
@@ -55,7 +56,7 @@ def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None
     phi = lambda x, tt: full_coordinates(x, scene, inst, t=None if steady else tt)  # noqa: E731
     rate = lambda x, tt: jax.jvp(phi, (x, tt), (qi_dot, one))[1]  # noqa: E731
     q, v = jax.jvp(phi, (qi, t), (qi_dot, one))
-    if flexible(scene):
+    if spans_of(scene).massive:
         _, gamma = jax.jvp(rate, (qi, t), (qi_dot, one))
     else:
         # massless spans (bars): their end nodes' accelerations carry no inertia, so only the
@@ -93,14 +94,9 @@ def span_coordinate_index(scene: Scene) -> np.ndarray:
     :func:`full_coordinates` copies the span coordinates of q_i (end slopes, interior nodes)
     into q unchanged, so ``dPhi/dq_i`` is, on these columns, the constant selection
     ``J[idx[k], n_rigid + k] = 1`` (zero elsewhere), whatever q_i and t.  Empty for the
-    rotational model.
+    rotational model (the span component's, :func:`beltjax.drive.spans.spans_of`).
     """
-    if not flexible(scene):
-        return np.zeros(0, dtype=int)
-    n = len(scene.route.order)
-    N = scene.model.elements_per_span
-    local = np.r_[2 : 4 * N, 4 * N + 2 : 4 * N + 4]  # slopes of node 0, nodes 1..N-1, slopes of node N
-    return (np.arange(n)[:, None] * 4 * (N + 1) + local[None, :]).reshape(-1)
+    return spans_of(scene).coordinate_index(len(scene.route.order))
 
 
 class ReducedMass(NamedTuple):
@@ -151,10 +147,14 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     r = F - M gamma, and the solve is by the Schur complement on the rigid coordinates:
     O(n^2) per call instead of forming J^T M J (O(n_full^2 n)) and an LU (O(n^3)).  Same
     equations as ``jnp.linalg.solve(*reduced_system(...))`` to round-off.  The rotational
-    model (massless bars) goes by the span lengths instead: :func:`_bar_accelerations`.
+    model (massless bars) goes by the span lengths instead: :func:`bar_accelerations`.  The span
+    component chooses (:meth:`beltjax.drive.spans.SpanModel.accelerations`).
     """
-    if not flexible(scene):
-        return _bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed)
+    return spans_of(scene).accelerations(qi, qi_dot, scene, inst, rm, t, speed)
+
+
+def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
+    """:func:`reduced_accelerations` of a drive with massive (ANCF) spans, by the Schur complement."""
     nr = n_rigid(scene)
     idx = span_coordinate_index(scene)
     q, v, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
@@ -181,14 +181,14 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     return jnp.concatenate([a_r, X[:, nr] - X[:, :nr] @ a_r])
 
 
-def _bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
+def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
     """:func:`reduced_accelerations` of the rotational model (rad/s^2), from the span lengths.
 
     Its spans are massless bars: their nodes carry no inertia, and their forces reach q_i
     only through the span lengths l(q_i) (:func:`span_lengths`, the same kinematic map), so
     F_ii = J_b^T (F_b - M_b gamma_b) - (dl/dq_i)^T (N + CA/L0 dl/dt) with the bodies' rows
     J_b of J and the bars' axial forces N = dV/dl (Green-Lagrange, less the centrifugal
-    term: :func:`_bar_energy`).  Same equations as the general path to round-off
+    term: :func:`beltjax.drive.spans.bar_energy`).  Same equations as the general path to round-off
     (tests/test_fast_paths.py), about 4x cheaper on the tensioner bench: the span nodes'
     coordinates and their derivatives are never formed.
     """
@@ -294,7 +294,7 @@ def span_transport_matrices(scene: Scene, inst: Installation):
     every span, each (n, 4 (N+1), 4 (N+1)): the spans' kinetic energy is
     1/2 e'^T M e' + c e'^T B e + 1/2 c^2 e^T C e (ancf.kinetic_energy), so its momentum
     conjugate to the transport speed is pi_c = e'^T B e + c e^T C e."""
-    N = scene.model.elements_per_span
+    N = spans_of(scene).elements
     idx = span.element_index(N)
     m = 4 * (N + 1)
     z = jnp.zeros(8)
@@ -325,7 +325,7 @@ def travel_inertia(q, v, gamma, scene: Scene, inst: Installation, t, BC=None) ->
     prescribed (driven drive pulley, statics, modes) or the spans are massless (rotational
     model: there c alone follows).
     """
-    if t is None or not flexible(scene) or not travel_follows_drive(scene):
+    if t is None or not spans_of(scene).massive or not travel_follows_drive(scene):
         return None
     n = len(scene.route.order)
     ns = n_span_coordinates(scene)
@@ -368,3 +368,6 @@ def static_residual(qi, scene: Scene, inst: Installation, speed=0.0):
     c = transport_speed(scene, inst, speed)
     F = full_forces(q, jnp.zeros_like(q), scene, inst, c)
     return vjp(F)[0]
+
+
+_bar_accelerations = bar_accelerations  # the name tests and benchmarks used

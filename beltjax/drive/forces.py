@@ -1,6 +1,6 @@
-"""Full mass matrix and forces in full coordinates: span forces from the element energies (ANCF
-spans and massless bars), belt damping, the bodies' forces, loads and the tensioner spring; only
-the effects the scene lists are traced.  Units: N, N m, kg, kg m^2."""
+"""Full mass matrix and forces in full coordinates: the span component's forces (ANCF spans or
+massless bars, from their energies), the bodies' forces, loads and the layout's (a tensioner's
+spring); only the effects the scene lists are traced.  Units: N, N m, kg, kg m^2."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import span
-from beltjax.ancf import Section
 from beltjax.scene import ARM, TENSIONER, Scene
-from beltjax.drive.topology import GRAVITY, Installation, drive_pulley, element_length, flexible, section, span_elements, span_names, travel_follows_drive
-from beltjax.drive.effects import Effects, effects_of
+from beltjax.drive.topology import GRAVITY, Installation, drive_pulley, element_length, span_names, travel_follows_drive
+from beltjax.drive.effects import effects_of
+from beltjax.drive.layouts import layout_of, spring_moment  # noqa: F401
+from beltjax.drive.spans import bar_axial_force as _bar_axial_force, spans_of
 from beltjax.drive.kinematics import split_full
 
 
@@ -34,30 +34,22 @@ def body_masses(scene: Scene, inst: Installation | None = None):
     if inst is not None:
         m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
         vals = [v + jnp.stack([m, m, m * R**2]) for v, m, R in zip(vals, m_arc, inst.radii)]
-    if scene.tensioner is not None:
-        t = scene.tensioner
-        vals.append(jnp.stack([t.arm_mass, t.arm_mass, t.arm_inertia]))
-    return jnp.concatenate(vals)
+    return jnp.concatenate(vals + layout_of(scene).masses(scene))
 
 
 def full_mass_matrix(scene: Scene, inst: Installation):
     """Block-diagonal mass matrix of the full coordinates (kg, kg m^2)."""
-    n = len(scene.route.order)
-    N = span_elements(scene)
-    idx = span.element_index(N)
+    model = spans_of(scene)
     Le = element_length(scene, inst)
-    if flexible(scene):
-        blocks = [span.span_mass_matrix(scene.belt.rhoA, Le[s], idx) for s in range(n)]
-    else:  # massless springs (the thesis' rotational model)
-        blocks = [jnp.zeros((4 * (N + 1), 4 * (N + 1))) for _ in range(n)]
+    blocks = [model.mass_block(scene.belt.rhoA, Le[s]) for s in range(len(scene.route.order))]
     blocks.append(jnp.diag(body_masses(scene, inst)))
     return jax.scipy.linalg.block_diag(*blocks)
 
 
-def _span_potential(e, sec: Section, Le, idx, bending, effects: Effects):
-    U = span.span_strain_energy(e, sec, Le, idx, bending)
-    extra = effects.span_potential(e, sec.rhoA, Le, idx)
-    return U if extra is None else U + extra
+def span_potential(e, s: int, scene: Scene, inst: Installation, c=0.0):
+    """Potential energy of span ``s`` (J) at its coordinates e: elastic plus the listed effects'
+    (the span component's, :func:`beltjax.drive.spans.spans_of`); c: transport speed (m/s)."""
+    return spans_of(scene).potential(e, scene.belt, element_length(scene, inst)[s], c, effects_of(scene))
 
 
 def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, dissipative=False):
@@ -67,61 +59,16 @@ def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot
     unstretched belt), c_dot its rate (m/s^2).  ``transport`` adds the
     gyroscopic, centrifugal and rhoA dc/dt terms, ``gravity`` the weight;
     with ``dissipative`` (transients) ``belt_damping`` adds the viscous axial
-    force of CA (N s): Rayleigh function 1/2 int CA (d eps/dt)^2 dx.
+    force of CA (N s): Rayleigh function 1/2 int CA (d eps/dt)^2 dx.  The span component
+    (ANCF span or bar) computes them.
     """
-    fx = effects_of(scene)
-    if not flexible(scene):
-        damp = dissipative and "belt_damping" in fx
-        return _bar_forces(e, e_dot if damp else None, s, scene, inst, c)
-    N = scene.model.elements_per_span
-    idx = span.element_index(N)
-    sec = section(scene)
     Le = element_length(scene, inst)[s]
-    f = -jax.grad(_span_potential)(e, sec, Le, idx, scene.model.bending, fx)
-    extra = fx.span_forces(e, e_dot, c, c_dot, scene, Le, idx, dissipative)
-    return f if extra is None else f + extra
-
-
-def _bar_energy(e, L0, EA, rhoA, c):
-    """Axial energy of a straight span as one bar, minus its transport (centrifugal) term (J).
-
-    Green-Lagrange, as the ANCF element: 1/2 EA L0 ((l/L0)^2 - 1)^2 / 4, so the axial force
-    is EA (lam^2 - 1)/2 * lam with lam = l / L0; the moving belt's kinetic energy
-    1/2 rhoA c^2 l^2 / L0 acts as a negative potential (hub force reduced by rhoA v^2).
-    """
-    d = e[4:6] - e[0:2]
-    return _bar_energy_l2(d @ d, L0, EA, rhoA, c)
-
-
-def _bar_energy_l2(l2, L0, EA, rhoA, c):
-    """:func:`_bar_energy` of a bar of squared length l2 (m^2)."""
-    eps = 0.5 * (l2 / L0**2 - 1.0)
-    return 0.5 * EA * L0 * eps**2 - 0.5 * rhoA * c**2 * l2 / L0
-
-
-def _bar_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0):
-    """Forces of a span of the rotational model on its end nodes (N), shape (8,).
-
-    e_dot: node rates for the viscous force (CA / L0) dl/dt along the bar (thesis eq. 4.15),
-    or None (no damping).
-    """
-    L0 = element_length(scene, inst)[s]
-    cc = effects_of(scene).transport_speed(c)
-    d = e[4:6] - e[0:2]
-    length = jnp.linalg.norm(d)
-    u = d / length
-    rate = None if e_dot is None else u @ (e_dot[4:6] - e_dot[0:2])
-    N = bar_axial_force(length, rate, L0, scene, cc)
-    return jnp.zeros(8, dtype=e.dtype).at[0:2].set(N * u).at[4:6].set(-N * u)
+    return spans_of(scene).forces(e, e_dot, scene.belt, Le, c, c_dot, effects_of(scene), dissipative)
 
 
 def bar_axial_force(length, rate, L0, scene: Scene, c=0.0):
-    """Axial force (N) of a rotational-model span, a bar of length ``length`` (m) and unstretched
-    length ``L0`` (m): dV/dl of :func:`_bar_energy` (Green-Lagrange, less the centrifugal term of
-    transport speed ``c`` m/s), plus the belt's viscous force CA / L0 dl/dt (thesis eq. 4.15) when
-    ``rate`` (dl/dt, m/s) is given.  The one bar law of both the general and the fast path."""
-    N = jax.grad(_bar_energy_l2)(length * length, L0, scene.belt.EA, scene.belt.rhoA, c) * (2 * length)
-    return N if rate is None else N + scene.belt.CA / L0 * rate
+    """:func:`beltjax.drive.spans.bar_axial_force` of the scene's belt (N)."""
+    return _bar_axial_force(length, rate, L0, scene.belt, c)
 
 
 def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_dot=None, t=None):
@@ -131,13 +78,11 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     damping effects (bearing: -c_b times the pulley's absolute speed; tensioner: -c
     times the arm's speed, N m s/rad) and the [[torque]] loads (N m).
     """
-    f = jnp.zeros_like(bodies)
-    if scene.tensioner is not None:
-        f = f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
+    f = layout_of(scene).body_forces(jnp.zeros_like(bodies), bodies, scene)
     fx = effects_of(scene)
     if "gravity" in fx:
         f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
-        if inst is not None and flexible(scene):
+        if inst is not None and spans_of(scene).massive:  # the belt's weight on its spans
             f = f.at[: len(scene.route.order), 2].add(_belt_weight_slide_moments(scene, inst, t is not None))
     if t is None:
         return f
@@ -165,7 +110,7 @@ def _belt_weight_slide_moments(scene: Scene, inst: Installation, transient: bool
     """
     n = len(scene.route.order)
     g = jnp.asarray(GRAVITY)
-    L0 = element_length(scene, inst) * scene.model.elements_per_span
+    L0 = element_length(scene, inst) * spans_of(scene).elements
     senses = jnp.asarray(scene.route.senses, dtype=L0.dtype)
     w = scene.belt.rhoA * (inst.span_tangent @ g) * L0 / 2  # per span, N
     prev = (np.arange(n) - 1) % n
@@ -193,12 +138,6 @@ def span_load_force(load, t):
     """Magnitude of a [[span_load]] force at time t (N), normal to the installed span."""
     w = 2 * jnp.pi * load.frequency_hz * t + jnp.deg2rad(load.phase_deg)
     return _window(t, load.t_start_s, load.t_end_s) * load.amplitude_N * jnp.sin(w)
-
-
-def spring_moment(theta, scene: Scene):
-    """Moment of the tensioner spring on the arm (N m): -k (theta - theta_0)."""
-    t = scene.tensioner
-    return -t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
 
 
 def full_forces(q, q_dot, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, t=None):

@@ -8,19 +8,20 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import geometry
 from beltjax.scene import TENSIONER, Scene
-from beltjax.drive.topology import Installation, drive_pulley, flexible, is_free, n_rigid, n_span_coordinates, span_elements, travel_follows_drive
+from beltjax.drive.topology import Installation, drive_pulley, is_free, n_rigid, n_span_coordinates, travel_follows_drive
+from beltjax.drive.layouts import layout_of
+from beltjax.drive.spans import spans_of
 from beltjax.drive.effects import effects_of
 
 
 def _split(qi, scene: Scene):
+    """q_i -> (rigid coordinates, span coordinates (n, per span) or None without any)."""
     nr = n_rigid(scene)
-    n = len(scene.route.order)
-    if not flexible(scene):
+    k = spans_of(scene).independent
+    if k == 0:
         return qi[:nr], None
-    N = scene.model.elements_per_span
-    return qi[:nr], qi[nr:].reshape(n, 4 * N)
+    return qi[:nr], qi[nr:].reshape(len(scene.route.order), k)
 
 
 def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
@@ -39,8 +40,7 @@ def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
             k += 1
         else:
             phis.append(driven[i])
-    theta = inst.arm_angle + (rigid[-1] if scene.tensioner is not None else 0.0)
-    return jnp.stack(phis), theta
+    return jnp.stack(phis), layout_of(scene).arm_angle(rigid, inst)
 
 
 def belt_travel(scene: Scene, t):
@@ -69,7 +69,7 @@ def belt_travel(scene: Scene, t):
 
 def n_reaction_points(scene: Scene) -> int:
     """Bearings whose reactions are reported: one per route entry, plus the arm pivot."""
-    return len(scene.route.order) + (1 if scene.tensioner is not None else 0)
+    return len(scene.route.order) + len(layout_of(scene).body_names)
 
 
 def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=None, shift=None):
@@ -89,7 +89,7 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     (x, y) of a pulley is the centre of mass of the pulley (offset by cm_offset, turning
     with it) and of its wrapped belt (on the axis).
     """
-    N = span_elements(scene)
+    model = spans_of(scene)
     _, spans = _split(qi, scene)
     phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
     centers, radii = _centers(theta, scene, inst, shift)
@@ -98,34 +98,16 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
         d = drive_pulley(scene)
         travel = scene.route.senses[d] * radii[d] * phi[d]
     start, end, t_hat = _span_ends(phi, centers, radii, scene, inst, travel)
-    parts = []
-    for s in range(len(scene.route.order)):
-        if spans is None:  # rotational: a bar between the end nodes; slopes are not used
-            slope = inst.stretch * t_hat[s]
-            nodes = jnp.concatenate([start[s], slope, end[s], slope])
-            parts.append(nodes)
-            continue
-        body = spans[s]
-        nodes = jnp.concatenate([start[s], body[:2], body[2:-2], end[s], body[-2:]])
-        parts.append(nodes)
-        assert nodes.shape[0] == 4 * (N + 1)
+    parts = [model.nodes(start[s], end[s], t_hat[s], None if spans is None else spans[s], inst.stretch)
+             for s in range(len(scene.route.order))]
     return jnp.concatenate(parts + [_body_coordinates(phi, theta, centers, scene, inst, t, shift)])
 
 
 def _centers(theta, scene: Scene, inst: Installation, shift=None):
     """Pulley centres (n, 2) m and radii (n,) m in route order at arm angle theta (rad),
-    bearings shifted by ``shift`` (see :func:`full_coordinates`)."""
-    n = len(scene.route.order)
-    if scene.tensioner is not None:
-        centers, radii = scene.layout(theta)
-        if shift is not None:
-            is_idler = jnp.asarray([name == TENSIONER for name in scene.route.order], dtype=centers.dtype)
-            centers = centers + is_idler[:, None] * shift[-1]
-    else:
-        centers, radii = inst.centers, inst.radii
-    if shift is not None:
-        centers = centers + shift[:n]
-    return centers, radii
+    bearings shifted by ``shift`` (see :func:`full_coordinates`): the layout's
+    (:func:`beltjax.drive.layouts.layout_of`)."""
+    return layout_of(scene).centers(theta, scene, inst, shift)
 
 
 def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0):
@@ -133,23 +115,16 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0
     map, for pulley rotation perturbations phi (n,) rad, centres (n, 2) m and radii (n,) m
     (:func:`_centers`); travel: the belt's travel beyond the nominal one (m), taken off every
     pulley's rim slide (the end nodes sit on the belt's Eulerian mesh, which moves with it).
-    end - start is along the direction: the span's length is (end - start) . t_hat."""
-    n = len(scene.route.order)
+    end - start is along the direction: the span's length is (end - start) . t_hat.
+
+    The tangent points are the layout's (fixed centres: the installed ones; a tensioner: those
+    of the moved layout, :func:`_moved_tangents`).  The belt on each arc turns with its pulley
+    and gains s R dpsi where its end point moved by dpsi (rad, CCW) from the installed one, so
+    each end node slides along its span by the rim travel less that, s R (phi - dpsi) - travel:
+    spans and arcs then keep the belt's length exactly as an arm swings.
+    """
     senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
-    nxt = (np.arange(n) + 1) % n
-    if scene.tensioner is None:
-        # fixed centres: the installed tangent points, each end node slid along its span by the
-        # rim travel of its pulley (belt fed into or drawn out of the span)
-        slide = senses * radii * phi - travel  # rim travel of each pulley along the belt (m)
-        t_hat = inst.span_tangent
-        start = centers + (inst.span_start - inst.centers) + slide[:, None] * t_hat
-        end = centers[nxt] + (inst.span_end - inst.centers[nxt]) + slide[nxt][:, None] * t_hat
-        return start, end, t_hat
-    # the idler moves with the arm: the exact tangent points of the moved layout, and the belt
-    # on each arc, which turns with its pulley, gains s R dpsi where its end point moved by dpsi
-    # (rad, CCW) from the installed one; the end node slides by the rim travel less that
-    # (s R (phi - dpsi)).  Spans and arcs then keep the belt's length exactly as the arm swings
-    # (moving the tangent points rigidly with the centres was exact to first order only).
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
     tl, dpsi = _moved_tangents(centers, radii, scene, inst)
     t_hat = tl.tangent
     start = tl.start + (senses * radii * (phi - dpsi) - travel)[:, None] * t_hat
@@ -175,23 +150,15 @@ def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=N
             c, sn = jnp.cos(angle[i]), jnp.sin(angle[i])
             pos = pos + jnp.stack([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
         bodies.append(jnp.concatenate([pos, angle[i][None]]))
-    if scene.tensioner is not None:
-        tt = scene.tensioner
-        cm = tt.pivot + tt.arm_cm_distance * jnp.stack([jnp.cos(theta), jnp.sin(theta)])
-        if shift is not None:
-            cm = cm + shift[-1]
-        bodies.append(jnp.concatenate([cm, theta[None]]))
-    return jnp.concatenate(bodies)
+    return jnp.concatenate(bodies + layout_of(scene).bodies(theta, scene, shift))
 
 
 def _moved_tangents(centers, radii, scene: Scene, inst: Installation):
     """Tangent lines of the layout with these centres (m) and radii (m), and how far each span's
-    direction turned from the installed one, dpsi (n,) rad CCW.  Both tangent points of a span
-    lie on the normal to its direction, so each turned by dpsi on its pulley."""
-    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
-    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
-    tl = geometry.tangent_line(centers, radii, senses, centers[nxt], radii[nxt], senses[nxt])
-    return tl, _turn(inst.span_tangent, tl.tangent)
+    direction turned from the installed one, dpsi (n,) rad CCW (zero for fixed centres).  Both
+    tangent points of a span lie on the normal to its direction, so each turned by dpsi on its
+    pulley."""
+    return layout_of(scene).tangents(centers, radii, scene, inst)
 
 
 def span_lengths(qi, scene: Scene, inst: Installation):
@@ -208,8 +175,6 @@ def span_lengths(qi, scene: Scene, inst: Installation):
     phi, theta = angles_and_arm(qi, scene, inst)
     centers, radii = _centers(theta, scene, inst)
     slides = _rim_slides(phi, radii, scene)
-    if scene.tensioner is None:
-        return inst.span_length + slides
     sr = jnp.asarray(scene.route.senses, dtype=qi.dtype) * radii
     nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
     tl, dpsi = _moved_tangents(centers, radii, scene, inst)
@@ -228,26 +193,26 @@ def span_lengths_and_jacobian(qi, scene: Scene, inst: Installation):
     """:func:`span_lengths` (n,) m and their Jacobian dl/dq_i (n, n_i) (m/rad) of the rotational
     model.
 
-    The rim slides are linear in the pulley angles and the layout moves with the arm angle
-    only, so the Jacobian is the slides' (constant in q_i) plus one column, the derivative along
-    the arm angle: one forward pass (jvp) instead of one per coordinate (jacfwd), which
-    matters in a vector field evaluated tens of thousands of times per simulated second.
+    The rim slides are linear in the pulley angles and the layout moves with its own
+    coordinates only (a tensioner's arm angle, the last rigid ones), so the Jacobian is the
+    slides' (constant in q_i) plus one column per layout coordinate, each a forward pass (jvp)
+    instead of one per coordinate (jacfwd), which matters in a vector field evaluated tens of
+    thousands of times per simulated second.
     """
-    if scene.tensioner is None:  # fixed centres: linear in q_i
-        return span_lengths(qi, scene, inst), jax.jacfwd(span_lengths)(qi, scene, inst)
-    e_arm = jnp.zeros_like(qi).at[n_rigid(scene) - 1].set(1.0)  # the arm angle, last rigid coordinate
-    l, dl_arm = jax.jvp(lambda x: span_lengths(x, scene, inst), (qi,), (e_arm,))
 
     def slides(x):
         phi, theta = angles_and_arm(x, scene, inst)
         return _rim_slides(phi, _centers(theta, scene, inst)[1], scene)
 
-    return l, jax.jacfwd(slides)(qi) + dl_arm[:, None] * e_arm[None, :]
-
-
-def _turn(a, b):
-    """Angle (rad, CCW, in (-pi, pi]) from the 2-vectors a to b, row by row."""
-    return jnp.arctan2(geometry._cross(a, b), geometry._dot(a, b))
+    J = jax.jacfwd(slides)(qi)
+    nr, k = n_rigid(scene), layout_of(scene).coordinates
+    if k == 0:  # fixed centres: linear in q_i
+        return span_lengths(qi, scene, inst), J
+    for j in range(nr - k, nr):
+        e_j = jnp.zeros_like(qi).at[j].set(1.0)
+        l, dl = jax.jvp(lambda x: span_lengths(x, scene, inst), (qi,), (e_j,))
+        J = J + dl[:, None] * e_j[None, :]
+    return l, J
 
 
 def split_full(q, scene: Scene):
@@ -258,13 +223,4 @@ def split_full(q, scene: Scene):
 
 def installed_coordinates(scene: Scene, inst: Installation):
     """Independent coordinates of the installed drive: straight spans at the installation stretch."""
-    if not flexible(scene):
-        return jnp.zeros(n_rigid(scene))
-    n = len(scene.route.order)
-    N = scene.model.elements_per_span
-    x = jnp.linspace(0.0, 1.0, N + 1)
-    pos = inst.span_start[:, None, :] + x[None, :, None] * (inst.span_end - inst.span_start)[:, None, :]
-    slope = jnp.broadcast_to((inst.stretch * inst.span_tangent)[:, None, :], (n, N + 1, 2))
-    nodes = jnp.concatenate([pos, slope], axis=-1).reshape(n, 4 * (N + 1))
-    spans = jnp.concatenate([nodes[:, 2 : 4 * N], nodes[:, 4 * N + 2 :]], axis=1)  # drop end positions
-    return jnp.concatenate([jnp.zeros(n_rigid(scene)), spans.reshape(-1)])
+    return jnp.concatenate([jnp.zeros(n_rigid(scene)), spans_of(scene).installed(inst)])

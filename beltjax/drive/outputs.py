@@ -2,38 +2,20 @@
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 
-from beltjax import ancf, span
 from beltjax.scene import Scene
-from beltjax.drive.topology import Installation, element_length, flexible
+from beltjax.drive.topology import Installation, element_length
+from beltjax.drive.spans import spans_of, tension_profile as span_tension_profile  # noqa: F401
 from beltjax.drive.kinematics import split_full
 from beltjax.drive.forces import span_forces
 from beltjax.drive.equations import transport_speed
 
 
-def span_tension_profile(e, EA, Le, N):
-    """Axial force EA eps |r'| (N) at each element's midpoint of a span, shape (N,)."""
-    idx = span.element_index(N)
-
-    def one(ee):
-        rp = ancf.slope(ee, 0.5, Le)
-        lam = jnp.sqrt(rp @ rp)
-        return ancf.axial_force(lam, EA)
-
-    return jax.vmap(one)(e[idx])
-
-
 def span_tensions(q, scene: Scene, inst: Installation):
     """Mean axial force of each span (N), route order."""
     E, _ = split_full(q, scene)
-    Le = element_length(scene, inst)
-    if not flexible(scene):
-        lam = jnp.linalg.norm(E[:, 4:6] - E[:, 0:2], axis=1) / Le
-        return ancf.axial_force(lam, scene.belt.EA)
-    N = scene.model.elements_per_span
-    return jnp.stack([jnp.mean(span_tension_profile(E[s], scene.belt.EA, Le[s], N)) for s in range(E.shape[0])])
+    return spans_of(scene).tensions(E, scene.belt.EA, element_length(scene, inst))
 
 
 def hub_forces(q, scene: Scene, inst: Installation, speed=0.0):

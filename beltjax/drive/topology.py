@@ -12,6 +12,8 @@ import numpy as np
 
 from beltjax.ancf import Section
 from beltjax.scene import TENSIONER, Scene
+from beltjax.drive.layouts import layout_of
+from beltjax.drive.spans import spans_of
 
 
 GRAVITY = (0.0, -9.81)  # m/s^2
@@ -58,25 +60,25 @@ def is_free(scene: Scene) -> list[bool]:
 
 
 def flexible(scene: Scene) -> bool:
-    """True for the hybrid ANCF fidelity; False for the rotational (Newton-Euler) one, whose
-    spans are massless axial springs between their end nodes."""
-    return scene.model.fidelity == "ancf"
+    """True for the hybrid ANCF fidelity (span nodes with mass); False for the rotational
+    (Newton-Euler) one, whose spans are massless axial bars (:func:`beltjax.drive.spans.spans_of`)."""
+    return spans_of(scene).massive
 
 
 def span_elements(scene: Scene) -> int:
     """Elements per span in the full coordinates: the mesh (ancf) or 1 (rotational: a bar)."""
-    return scene.model.elements_per_span if flexible(scene) else 1
+    return spans_of(scene).elements
 
 
 def n_rigid(scene: Scene) -> int:
-    """Number of independent rigid-body coordinates (free pulley angles, arm angle)."""
-    return sum(is_free(scene)) + (1 if scene.tensioner is not None else 0)
+    """Number of independent rigid-body coordinates (free pulley angles, then the layout's:
+    the arm angle of a tensioner)."""
+    return sum(is_free(scene)) + layout_of(scene).coordinates
 
 
 def n_independent(scene: Scene) -> int:
     """Number of independent coordinates of the drive."""
-    per_span = 4 * scene.model.elements_per_span if flexible(scene) else 0
-    return n_rigid(scene) + per_span * len(scene.route.order)
+    return n_rigid(scene) + spans_of(scene).independent * len(scene.route.order)
 
 
 def n_span_coordinates(scene: Scene) -> int:
@@ -86,16 +88,13 @@ def n_span_coordinates(scene: Scene) -> int:
 
 def n_full(scene: Scene) -> int:
     """Number of full coordinates (spans, then 3 per body)."""
-    n = len(scene.route.order)
-    return n_span_coordinates(scene) + 3 * (n + (1 if scene.tensioner is not None else 0))
+    return n_span_coordinates(scene) + 3 * len(body_names(scene))
 
 
 def body_names(scene: Scene) -> list[str]:
-    """Rigid bodies in the order of the full coordinates: route entries, then "tensioner arm"."""
-    names = list(scene.route.order)
-    if scene.tensioner is not None:
-        names.append("tensioner arm")
-    return names
+    """Rigid bodies in the order of the full coordinates: route entries, then the layout's
+    ("tensioner arm")."""
+    return list(scene.route.order) + list(layout_of(scene).body_names)
 
 
 def static_dofs(scene: Scene) -> np.ndarray:

@@ -60,7 +60,7 @@ def class_energies(V, scene: Scene, inst):
     Le = drive.element_length(scene, inst)
     t = inst.span_tangent
     nrm = jnp.stack([-t[:, 1], t[:, 0]], axis=1)
-    rhoA = scene.belt.rhoA if drive.flexible(scene) else 0.0
+    rhoA = drive.spans_of(scene).mass_per_length(scene.belt.rhoA)
     tr = lo = jnp.zeros(V.shape[1])
     for s in range(n):
         Ms = span.span_component_mass(rhoA, Le[s], N)
