@@ -180,12 +180,12 @@ def _title(scene, path) -> str:
 
 def cmd_statics(args) -> int:
     """Static state of a drive: statics.json, layout.png and a table."""
-    from beltjax import statics
+    from beltjax import friction, statics
     from beltjax.plotting import plot_layout
 
     scene = _load(args.scene)
     out = _out_dir(args.out)
-    res = _analysis(statics.analyse_statics, scene)
+    res = _analysis(statics.analyse_statics, scene, loaded=False if args.unloaded else None)
     data = res.to_json()
     if not all(math.isfinite(x) for x in data["span_tensions_N"]):
         raise RuntimeError("the statics produced a non-finite span tension")
@@ -193,6 +193,9 @@ def cmd_statics(args) -> int:
     plot_layout(scene, res, out / "layout.png")
     print(f"statics of {_title(scene, args.scene)}")
     print(statics_table(res))
+    warning = friction.slip_warning(res.friction, res.state)
+    if warning:
+        print(f"beltjax: warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -329,6 +332,9 @@ def build_parser() -> argparse.ArgumentParser:
     st = sub.add_parser("statics", help="static state of a drive: span tensions, hub forces, tensioner angle")
     st.add_argument("scene", help="scene file (TOML)")
     st.add_argument("--out", default="out", help="output directory (default ./out)")
+    st.add_argument("--unloaded", action="store_true",
+                    help="the unloaded state only (default: the operating point under the scene's mean loads, "
+                         "with the unloaded state beside it)")
     st.set_defaults(func=cmd_statics)
 
     mo = sub.add_parser("modal", help="natural frequencies and mode shapes of a drive")

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import ancf, critical, drive, modal, span, statics
+from beltjax import critical, drive, modal, statics
 from beltjax.scene import Scene
 from beltjax.drive.effects import effects_of
 from beltjax.mode_labels import (NAME_SHARE, RIGID_HZ, REPEATED_RTOL, _fine_profile, _half_waves, _labels,  # noqa: F401
@@ -226,8 +226,7 @@ def at_speed(scene: Scene, speed, inst=None, steps: int = 1, gyroscopic: bool | 
     qi, inst, info = statics.equilibrium(scene, inst, speed=speed, steps=steps)
     sup = critical.supercritical(scene, qi, inst, speed)
     if track:
-        gyro = effects_of(scene).moving_belt if gyroscopic is None else gyroscopic
-        t = tracking_shapes(scene, qi, inst, speed, track, gyro, full=full)
+        t = tracking_shapes(scene, qi, inst, speed, track, _gyroscopic(scene, gyroscopic), full=full)
         return SpeedModes(qi, inst, info[0] > 0.5, sup, t["stable"], t["freqs"], None, None, None, t)
     stable, f, M, G, K = frequencies_about(scene, qi, inst, speed, gyroscopic)
     return SpeedModes(qi, inst, info[0] > 0.5, sup, stable, f, M, G, K)
@@ -237,9 +236,14 @@ def frequencies_about(scene: Scene, qi, inst, speed, gyroscopic: bool | None = N
     """Linearisation -> frequencies about a solved equilibrium (qi, inst) at belt speed ``speed``
     (m/s), the second half of :func:`at_speed`: (stable, freqs Hz ascending, M, G, K)."""
     M, G, K = linearise(qi, scene, inst, speed)
-    gyro = effects_of(scene).moving_belt if gyroscopic is None else gyroscopic
-    stable, f = frequencies_from_matrices(M, G, K, n_rigid_modes(scene), gyro, rigid_mode(scene, inst))
+    stable, f = frequencies_from_matrices(M, G, K, n_rigid_modes(scene), _gyroscopic(scene, gyroscopic),
+                                          rigid_mode(scene, inst))
     return stable, f, M, G, K
+
+
+def _gyroscopic(scene: Scene, gyroscopic: bool | None) -> bool:
+    """Whether G enters the eigen-problem: as asked, else whether the belt moves (``transport``)."""
+    return effects_of(scene).moving_belt if gyroscopic is None else gyroscopic
 
 
 def frequencies(scene: Scene, speed=None):
@@ -251,9 +255,6 @@ def frequencies(scene: Scene, speed=None):
     speed = drive.belt_speed(scene) if speed is None else speed
     m = at_speed(scene, speed)
     return jnp.where(m.stable, m.freqs, jnp.nan)
-
-
-# --------------------------------------------------------------------------- labels
 
 
 # --------------------------------------------------------------------------- user-facing result

@@ -7,7 +7,8 @@ key or file it is about, e.g. ``belt.EI: must lie in [0, 100] N m^2, got 1e+20``
 The command line prints exactly that line after ``beltjax: error:`` and exits with
 status 2; the Python API raises the same message.  The subclasses only say where the
 problem was found (scene, statics, sweep, ...), so ``except BeltjaxError`` catches
-them all.
+them all.  Every one is raised the same way, ``XError(message, key)``; what a subclass
+adds (a scene's file, a layout fault's kind and pulleys) is keyword-only.
 """
 
 from __future__ import annotations

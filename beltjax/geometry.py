@@ -56,8 +56,8 @@ class GeometryError(BeltjaxError):
     "through") and ``pulleys``, the route indices of the pulleys involved.
     """
 
-    def __init__(self, message: str, kind: str = "", pulleys: tuple[int, ...] = ()):
-        super().__init__(message)
+    def __init__(self, message: str = "", key: str = "", *, kind: str = "", pulleys: tuple[int, ...] = ()):
+        super().__init__(message, key)
         self.kind = kind
         self.pulleys = tuple(pulleys)
 
@@ -326,10 +326,10 @@ def check_drive(
         raise ValueError(f"senses: expected {n} values of +1 or -1, got {s.tolist()}")
     if not np.all(np.isfinite(c)):
         i = int(np.argwhere(~np.isfinite(c))[0][0])
-        raise GeometryError(f"pulley {nm[i]!r}: centre must be finite, got {c[i].tolist()}", "radius", (i,))
+        raise GeometryError(f"pulley {nm[i]!r}: centre must be finite, got {c[i].tolist()}", kind="radius", pulleys=(i,))
     for i in range(n):
         if not (np.isfinite(R[i]) and R[i] > 0):
-            raise GeometryError(f"pulley {nm[i]!r}: radius must be > 0, got {R[i]!r}", "radius", (i,))
+            raise GeometryError(f"pulley {nm[i]!r}: radius must be > 0, got {R[i]!r}", kind="radius", pulleys=(i,))
     scale = max(1.0, float(np.max(np.abs(c))), float(np.max(R)))
     tol = 1e-12 * scale
     for i in range(n):
@@ -343,8 +343,8 @@ def check_drive(
             raise GeometryError(
                 f"no {kind} tangent from {nm[i]!r} to {nm[j]!r}: centre distance {D:.6g} m "
                 f"<= {rule} = {need:.6g} m",
-                "tangent",
-                (i, j),
+                kind="tangent",
+                pulleys=(i, j),
             )
     for i in range(n):
         for j in range(i + 1, n):
@@ -353,8 +353,8 @@ def check_drive(
                 raise GeometryError(
                     f"pulleys {nm[i]!r} and {nm[j]!r} overlap: centre distance {D:.6g} m "
                     f"<= R1 + R2 = {R[i] + R[j]:.6g} m",
-                    "overlap",
-                    (i, j),
+                    kind="overlap",
+                    pulleys=(i, j),
                 )
     g = _compute(jnp.asarray(c), jnp.asarray(R), s)
     wrap = np.asarray(g.wrap)
@@ -363,8 +363,8 @@ def check_drive(
             raise GeometryError(
                 f"wrap angle on pulley {nm[i]!r} degenerates: {math.degrees(wrap[i]) + 0.0:.6g} deg "
                 f"(the belt only grazes it, or would loop round it)",
-                "wrap",
-                (i,),
+                kind="wrap",
+                pulleys=(i,),
             )
     start = np.asarray(g.span_start)
     end = np.asarray(g.span_end)
@@ -378,7 +378,7 @@ def check_drive(
                 continue
             if _point_segment_distance(c[k], start[i], end[i]) < R[k] - tol:
                 raise GeometryError(
-                    f"span {span_name(i)} passes through pulley {nm[k]!r}", "through", (i, (i + 1) % n, k)
+                    f"span {span_name(i)} passes through pulley {nm[k]!r}", kind="through", pulleys=(i, (i + 1) % n, k)
                 )
     if allow_crossing is None:
         allow_crossing = n == 2
@@ -389,6 +389,6 @@ def check_drive(
                     raise GeometryError(
                         f"spans {span_name(i)} and {span_name(j)} cross each other "
                         f"(check route.order and back_side)",
-                        "crossing",
-                        (i, (i + 1) % n, j, (j + 1) % n),
+                        kind="crossing",
+                        pulleys=(i, (i + 1) % n, j, (j + 1) % n),
                     )

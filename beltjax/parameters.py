@@ -53,9 +53,10 @@ _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_
 class ParameterError(BeltjaxError):
     """A parameter path that names no scalar of the scene, or a value out of its range (one line)."""
 
-    def __init__(self, path: str, message: str):
-        super().__init__(message, path)
-        self.path = path
+    @property
+    def path(self) -> str:
+        """The parameter path the message is about (the ``key``)."""
+        return self.key
 
 
 def _motion_rule(scene: Scene, name: str, key: str) -> str | None:
@@ -85,43 +86,49 @@ def paths(scene: Scene) -> list[str]:
 def _resolve(scene: Scene, path: str):
     """(getter of the owning array leaf, component index or None, field) for ``path``."""
     if not isinstance(path, str) or not path:
-        raise ParameterError(str(path), "a parameter path is a non-empty string such as 'belt.EI'")
+        raise ParameterError("a parameter path is a non-empty string such as 'belt.EI'", str(path))
     parts = path.split(".")
     head = parts[0]
     if head == "belt":
         if len(parts) != 2 or parts[1] not in _BELT:
-            raise ParameterError(path, f"belt parameters are {', '.join('belt.' + k for k in _BELT)}")
+            raise ParameterError(f"belt parameters are {', '.join('belt.' + k for k in _BELT)}", path)
         return (lambda s: s.belt), None, parts[1]
     if head == "pulley":
         names = [p.name for p in scene.pulleys]
         if len(parts) < 3 or parts[1] not in names:
-            raise ParameterError(path, f"write pulley.<name>.<key> with a pulley of the scene ({', '.join(names)})")
+            raise ParameterError(f"write pulley.<name>.<key> with a pulley of the scene ({', '.join(names)})", path)
         i = names.index(parts[1])
         rest, owner, vectors, scalars = parts[2:], (lambda s: s.pulleys[i]), _VECTORS["pulley"], _PULLEY
     elif head == "tensioner":
         if scene.tensioner is None:
-            raise ParameterError(path, "the scene has no tensioner")
+            raise ParameterError("the scene has no tensioner", path)
         rest, owner, vectors, scalars = parts[1:], (lambda s: s.tensioner), _VECTORS["tensioner"], _TENSIONER
     else:
-        raise ParameterError(path, "a parameter path starts with belt., pulley.<name>. or tensioner.")
+        raise ParameterError("a parameter path starts with belt., pulley.<name>. or tensioner.", path)
     if len(rest) == 2 and rest[0] in vectors and rest[1] in _COMPONENTS:
         return owner, _COMPONENTS[rest[1]], rest[0]
     if len(rest) == 1 and rest[0] in scalars:
         why = _motion_rule(scene, parts[1], rest[0]) if head == "pulley" else None
         if why is not None:
-            raise ParameterError(path, why)
+            raise ParameterError(why, path)
         return owner, None, rest[0]
     keys = [f"{v}.{c}" for v in vectors for c in _COMPONENTS] + list(scalars)
-    raise ParameterError(path, f"unknown key {'.'.join(rest)!r}; choose one of {', '.join(keys)}")
+    raise ParameterError(f"unknown key {'.'.join(rest)!r}; choose one of {', '.join(keys)}", path)
 
 
 def check(scene: Scene, path: str) -> str:
-    """``path`` if it names a scalar of ``scene`` that can be set (else :class:`ParameterError`)."""
+    """``path`` if it names a scalar of ``scene`` that can be set and that acts: its owning
+    effect (:data:`beltjax.schema.FIELDS`), if any, is listed in ``model.effects`` (else
+    :class:`ParameterError`: a sweep or fit of a parameter that changes nothing)."""
     owner, _, name = _resolve(scene, path)
     if owner(scene) is None:
-        raise ParameterError(path, "the scene has no such part")
+        raise ParameterError("the scene has no such part", path)
     if name not in ("static_tension", "length") and getattr(owner(scene), name) is None:
-        raise ParameterError(path, "this parameter is not set in the scene (give it in the scene file first)")
+        raise ParameterError("this parameter is not set in the scene (give it in the scene file first)", path)
+    f = schema.field(path)
+    if f is not None and f.effect and f.effect not in scene.model.effects:
+        raise ParameterError(f"belongs to the effect \"{f.effect}\", which model.effects does not list: it "
+                             "would change nothing", path)
     return path
 
 
@@ -132,12 +139,12 @@ def check_value(path: str, value) -> None:
         return
     f = schema.field(path)
     if f is not None and isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**1023:
-        raise ParameterError(path, schema.problem(f, value))  # beyond float64
+        raise ParameterError(schema.problem(f, value), path)  # beyond float64
     v = np.ravel(np.asarray(value, dtype=float))
     if f is not None and v.size:
         bad = schema.bad(f, v)
         if bad.any():
-            raise ParameterError(path, schema.problem(f, v[int(np.argmax(bad))]))
+            raise ParameterError(schema.problem(f, v[int(np.argmax(bad))]), path)
 
 
 def _concrete(values: Mapping[str, object]) -> bool:
@@ -156,7 +163,7 @@ def _checked(scene: Scene, values: Mapping[str, object]) -> Scene:
         key, msg = problem
         _, keys = validate.table(scene)
         blame = next((p for p in values if keys.get(p) == key), next(iter(values)))
-        raise ParameterError(blame, msg if keys.get(blame) == key else f"{key}: {msg}")
+        raise ParameterError(msg if keys.get(blame) == key else f"{key}: {msg}", blame)
     return scene
 
 
@@ -190,7 +197,7 @@ def _set(scene: Scene, path: str, value) -> Scene:
         return eqx.tree_at(lambda s: s.belt, scene, type(belt)(**fields))
     leaf = getattr(owner(scene), name)
     if leaf is None:
-        raise ParameterError(path, "this parameter is not set in the scene (give it in the scene file first)")
+        raise ParameterError("this parameter is not set in the scene (give it in the scene file first)", path)
     new = jnp.asarray(leaf, dtype=jnp.float64).at[comp].set(value) if comp is not None else value
     return eqx.tree_at(lambda s: getattr(owner(s), name), scene, new)
 

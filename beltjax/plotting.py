@@ -18,7 +18,6 @@ import warnings
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle
 
 from beltjax import ancf
 from beltjax.span import element_index

@@ -50,7 +50,9 @@ MAX_OFFSET_RATIO = 1e8
 class Field:
     """A scalar parameter: ``unit``; accepted range [low, high] (inclusive) with its reason
     ``why``; ``sign`` ">0" or ">=0" when a value of the wrong sign reads "must be > 0" (the
-    physical rule) before the range; ``effect``: the model effect that uses it, if any."""
+    physical rule) before the range; ``effect``: the model effect that owns it, if any (its
+    module in :mod:`beltjax.drive.effects` reads its parameters from here; a scene that gives
+    it, or a sweep or optimisation that moves it, without listing the effect is refused)."""
 
     unit: str
     low: float
@@ -82,6 +84,7 @@ _ANGLE = Field("deg", -3600.0, 3600.0, "ten turns either way; beyond, sin and co
 _TIME = Field("s", 0.0, 1e6, "11 days of simulated time", ">=0")
 _FREQ = Field("Hz", 0.0, 1e6, "far above any belt-drive excitation", ">=0")
 _MOMENT = Field("N m", -1e8, 1e8, "beyond any shaft's torque")
+_FRICTION = Field("", 1e-3, 5.0, "from a lubricated contact to beyond any rubber on metal (0.3-1.5)", ">0")
 
 #: every scalar: "belt.<key>", "pulley.<key>", "tensioner.<key>", "torque.<key>",
 #: "span_load.<key>", "simulation.<key>", "initial.<key>", and the API's "span.<key>"
@@ -95,6 +98,8 @@ FIELDS: dict[str, Field] = {
     "belt.CA": Field("N s", 0.0, 1e6, "the thesis' belt has 3-47 N s", ">=0", "belt_damping"),
     "belt.static_tension": Field("N", 1e-6, 1e8, "from a hanging thread to a conveyor's 1e7 N", ">0"),
     "belt.length": Field(_LEN, 1e-3, 1e6, "from a 1 mm loop to a 1000 km belt", ">0"),
+    "belt.friction_coefficient": _FRICTION,
+    "belt.groove_angle_deg": Field("deg", 10.0, 120.0, "V and ribbed belts have 30-40 deg grooves", ">0"),
     "pulley.center": _CENTRE,
     "pulley.radius": _RADIUS,
     "pulley.mass": _MASS,
@@ -108,6 +113,7 @@ FIELDS: dict[str, Field] = {
     "pulley.bearing_damping": Field("N m s/rad", 0.0, 1e6, "a bearing this viscous is locked", ">=0",
                                     "bearing_damping"),
     "pulley.target_speed_rpm": _RPM,
+    "pulley.friction_coefficient": _FRICTION,
     "tensioner.pivot": _CENTRE,
     "tensioner.arm_length": Field(_LEN, 1e-4, 1e2, "from 0.1 mm to 100 m", ">0"),
     "tensioner.pulley_radius": _RADIUS,

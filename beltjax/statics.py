@@ -33,19 +33,16 @@ centrifugal terms of the moving belt included when ``transport`` is listed).
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
 from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import ancf, critical, drive, schema, span
+from beltjax import ancf, drive, span
 from beltjax.errors import BeltjaxError
 from beltjax.drive import Installation
 from beltjax.scene import TENSIONER, Scene
-from beltjax.drive.effects import effects_of
 
 #: largest installation strain accepted (2 %, far beyond any belt's working strain): a
 #: belt that would need more "cannot be fitted"
@@ -276,11 +273,13 @@ def _newton(f, q0, max_iter: int = 40, xtol: float = 1e-11):
     return q, (conv.astype(q.dtype), jnp.asarray(it, q.dtype), rn)
 
 
-def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, steps: int = 1):
+def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, steps: int = 1, loaded: bool = False):
     """Static (steady-motion) equilibrium: independent coordinates and diagnostics.
 
     speed: belt speed (m/s; default from the drive pulley's speed_rpm);
-    steps: speed (load) steps from rest to ``speed``.  Returns
+    steps: speed (load) steps from rest to ``speed`` (the mean loads stepped with it);
+    loaded: the operating point (the scene's mean loads act: :func:`beltjax.drive.mean_body_loads`)
+    rather than the unloaded state.  Returns
     ``(qi, inst, (converged, iterations, residual_norm))`` (floats; converged is 1.0 or 0.0); differentiable in
     every scene parameter by the implicit function theorem.
     """
@@ -291,7 +290,7 @@ def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, step
     q0 = full0[dofs]
 
     def residual(q, v):
-        return drive.static_residual(full0.at[dofs].set(q), scene, inst, v)[dofs]
+        return drive.static_residual(full0.at[dofs].set(q), scene, inst, v, loaded)[dofs]
 
     def f(q):
         return residual(q, speed)
@@ -315,78 +314,22 @@ def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, step
     return full0.at[dofs].set(q), inst, info
 
 
-# --------------------------------------------------------------------------- the user-facing result
-
-
-@dataclass
-class StaticResult:
-    """Static state of a drive (SI units; route order); see :func:`analyse_statics`.
-
-    span_names; span_tensions_N: mean axial force per span; span_lengths_m;
-    belt_length_m: unstretched belt length; installation_tension_N; stretch;
-    hub_forces_N: force of the belt on each hub {name: [Fx, Fy]} (the tensioner
-    idler as "tensioner"); tensioner_angle_deg, spring_moment_Nm,
-    tensioner_pivot_force_N (None without a tensioner); wrap_angles_deg;
-    speed_m_s; converged, iterations; span_forces_N: each span's force on the pulleys,
-    tension less rhoA c^2 lam (:mod:`beltjax.critical`); supercritical: None, or the
-    one-line reason why the state is past the critical speed (only with
-    ``analyse_statics(..., allow_supercritical=True)``).
-    """
-
-    span_names: list[str]
-    span_tensions_N: np.ndarray
-    span_lengths_m: np.ndarray
-    belt_length_m: float
-    installation_tension_N: float
-    stretch: float
-    hub_forces_N: dict
-    wrap_angles_deg: dict
-    speed_m_s: float
-    tensioner_angle_deg: float | None
-    spring_moment_Nm: float | None
-    tensioner_pivot_force_N: list | None
-    iterations: int
-    qi: np.ndarray = field(repr=False)
-    q: np.ndarray = field(repr=False)
-    inst: Installation = field(repr=False)
-    span_forces_N: np.ndarray | None = None
-    supercritical: str | None = None
-
-    def to_json(self) -> dict:
-        """statics.json contents."""
-        d = {
-            "span_names": self.span_names,
-            "span_tensions_N": [float(x) for x in self.span_tensions_N],
-            "span_forces_N": None if self.span_forces_N is None else [float(x) for x in self.span_forces_N],
-            "span_lengths_m": [float(x) for x in self.span_lengths_m],
-            "belt_length_m": self.belt_length_m,
-            "installation_tension_N": self.installation_tension_N,
-            "stretch": self.stretch,
-            "hub_forces_N": {k: [float(v[0]), float(v[1])] for k, v in self.hub_forces_N.items()},
-            "hub_force_magnitudes_N": {k: float(np.hypot(*v)) for k, v in self.hub_forces_N.items()},
-            "wrap_angles_deg": self.wrap_angles_deg,
-            "speed_m_s": self.speed_m_s,
-            "newton_iterations": self.iterations,
-        }
-        if self.tensioner_angle_deg is not None:
-            d["tensioner_angle_deg"] = self.tensioner_angle_deg
-            d["spring_moment_Nm"] = self.spring_moment_Nm
-            d["tensioner_pivot_force_N"] = self.tensioner_pivot_force_N
-        return d
+# --------------------------------------------------------------------------- compiled statics
 
 
 install_compiled = jax.jit(install)
 """The jitted :func:`install` (lengths m, tension N, arm angle rad), compiled once per scene structure."""
 
 
-@partial(jax.jit, static_argnames=("steps",))
-def _statics_core(scene: Scene, speed, steps: int = 1):
-    qi, inst, info = equilibrium(scene, speed=speed, steps=steps)
-    return static_outputs(scene, qi, inst, speed), info
+@partial(jax.jit, static_argnames=("steps", "loaded"))
+def _statics_core(scene: Scene, speed, steps: int = 1, loaded: bool = False):
+    qi, inst, info = equilibrium(scene, speed=speed, steps=steps, loaded=loaded)
+    return static_outputs(scene, qi, inst, speed, loaded), info
 
 
-def static_outputs(scene, qi, inst, speed):
-    """Outputs at equilibrium ``qi``, belt speed ``speed`` (m/s): q, theta (rad), tensions, hubs (N), lengths (m)."""
+def static_outputs(scene, qi, inst, speed, loaded: bool = False):
+    """Outputs at equilibrium ``qi``, belt speed ``speed`` (m/s): q, theta (rad), tensions, hubs (N),
+    lengths (m), the drive pulley's torque (N m) and the mean loads on the bodies (N m)."""
     q = drive.full_coordinates(qi, scene, inst)
     _, theta = drive.angles_and_arm(qi, scene, inst)
     return dict(
@@ -394,89 +337,20 @@ def static_outputs(scene, qi, inst, speed):
         tensions=drive.span_tensions(q, scene, inst),
         hubs=drive.hub_forces(q, scene, inst, speed),
         lengths=drive.full_span_lengths(q, scene),
+        drive_torque=drive.drive_torque(qi, scene, inst, speed, loaded),
+        loads=drive.mean_body_loads(scene, inst, speed)[:, 2] if loaded else jnp.zeros(len(drive.body_names(scene))),
     )
 
 
-def solve_at(scene: Scene, v: float):
+def solve_at(scene: Scene, v: float, loaded: bool = False):
     """(:func:`static_outputs` at belt speed v (m/s), converged (bool), Newton iterations,
-    residual norm) of the (canonical) scene; speed stepping when Newton from the
-    installed state fails (:data:`RETRY_STEPS`).  Compiled once per scene structure (v is traced)."""
-    out, (conv, it, rn) = _statics_core(scene, v)
+    residual norm) of the (canonical) scene, at its operating point with ``loaded`` (else
+    unloaded); speed stepping when Newton from the installed state fails
+    (:data:`RETRY_STEPS`).  Compiled once per scene structure (v is traced)."""
+    out, (conv, it, rn) = _statics_core(scene, v, loaded=loaded)
     if not float(conv) > 0.5:
-        out, (conv, it, rn) = _statics_core(scene, v, steps=RETRY_STEPS)
+        out, (conv, it, rn) = _statics_core(scene, v, steps=RETRY_STEPS, loaded=loaded)
     return out, float(conv) > 0.5, int(it), float(rn)
 
 
-def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercritical: bool = False) -> StaticResult:
-    """Static state of the drive at belt speed ``speed`` (m/s; default from speed_rpm).
-
-    Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
-    Newton iteration fails even with speed stepping, a span would go slack, or the
-    speed is past the drive's critical speed (a span's force on the pulleys, tension
-    less rhoA c^2 lam, <= 0: :mod:`beltjax.critical`; the line names the span, the speed
-    and the critical speed).  With ``allow_supercritical`` such a state is returned
-    instead, with the reason in ``supercritical`` (for the modal analysis, which reports
-    it as unstable, and the transients, which record it).  A scene that fails the scene
-    file's checks (:func:`beltjax.validate.check_scene`) or a speed that is NaN, infinite,
-    negative or beyond 1e4 m/s is a one-line :class:`beltjax.errors.BeltjaxError`.
-    """
-    from beltjax import validate
-
-    validate.check_scene(scene)
-    v = float(drive.belt_speed(scene)) if speed is None else schema.number(speed, "speed", "drive.speed")
-    scene = drive.canonical(scene)
-    inst = install_compiled(scene)
-    check_installation(scene, inst)
-    out, conv, it, rn = solve_at(scene, v)
-    if not conv:
-        vc = critical.critical_speed(scene, v) if v != 0.0 else None
-        if vc is not None:
-            raise StaticsError(critical.message(scene, abs(v), vc, None, None))
-        raise StaticsError(f"no static equilibrium found (Newton stalled at residual {rn:.3g})", "statics")
-    names = drive.span_names(scene)
-    tensions = np.asarray(out["tensions"])
-    for nm, T in zip(names, tensions):
-        if not T > 0:
-            raise StaticsError(f"span {nm} would go slack (tension {T:.4g} N)", "statics")
-    forces = critical.output_forces(scene, out, v)
-    reason = None
-    if v != 0.0 and not np.all(forces > 0):
-        vc = critical.critical_speed(scene, v)
-        reason = critical.message(scene, abs(v), vc, forces, tensions)
-        if not allow_supercritical:
-            raise StaticsError(reason)
-    order = scene.route.order
-    hubs = np.asarray(out["hubs"])
-    inst = out["inst"]
-    check_solved(scene, float(inst.tension), math.degrees(float(out["theta"])) if scene.tensioner is not None else None)
-    res = StaticResult(
-        span_names=names,
-        span_tensions_N=tensions,
-        span_lengths_m=np.asarray(out["lengths"]),
-        belt_length_m=float(inst.belt_length),
-        installation_tension_N=float(inst.tension),
-        stretch=float(inst.stretch),
-        hub_forces_N={order[i]: hubs[i] for i in range(len(order))},
-        wrap_angles_deg={order[i]: float(np.degrees(inst.wrap[i])) for i in range(len(order))},
-        speed_m_s=v,
-        tensioner_angle_deg=None,
-        spring_moment_Nm=None,
-        tensioner_pivot_force_N=None,
-        iterations=int(it),
-        qi=np.asarray(out["qi"]),
-        q=np.asarray(out["q"]),
-        inst=inst,
-        span_forces_N=forces,
-        supercritical=reason,
-    )
-    if scene.tensioner is not None:
-        th = float(out["theta"])
-        res.tensioner_angle_deg = math.degrees(th)
-        res.spring_moment_Nm = float(drive.spring_moment(th, scene))
-        k = order.index(TENSIONER)
-        pivot = hubs[k].copy()
-        if "gravity" in effects_of(scene):
-            t = scene.tensioner
-            pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
-        res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
-    return res
+from beltjax.static_state import StaticResult, analyse_statics, _state  # noqa: E402,F401  (moved there; it imports this module)

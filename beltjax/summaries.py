@@ -40,11 +40,18 @@ def statics_table(res) -> str:
     """Span tensions, hub forces and the tensioner's state of a StaticResult, as text."""
     import numpy as np
 
+    state = res.state
+    if res.state == "operating point":
+        loads = ", ".join(f"{k} {v:+.4g} N m" for k, v in res.loads_Nm.items())
+        state = f"operating point (mean loads: {loads})"
     lines = [f"belt: unstretched length {res.belt_length_m:.6g} m, installation tension "
              f"{res.installation_tension_N:.4g} N, stretch {res.stretch:.6f}, belt speed {res.speed_m_s:g} m/s",
-             "", f"{'span':<26} {'length [m]':>11} {'tension [N]':>12}"]
-    for name, L, T in zip(res.span_names, res.span_lengths_m, res.span_tensions_N):
-        lines.append(f"{name:<26} {float(L):>11.5f} {float(T):>12.2f}")
+             f"state: {state}"]
+    unloaded = res.unloaded["span_tensions_N"] if res.unloaded else None
+    head = f"{'span':<26} {'length [m]':>11} {'tension [N]':>12}" + (f" {'unloaded [N]':>13}" if unloaded else "")
+    lines += ["", head]
+    for i, (name, L, T) in enumerate(zip(res.span_names, res.span_lengths_m, res.span_tensions_N)):
+        lines.append(f"{name:<26} {float(L):>11.5f} {float(T):>12.2f}" + (f" {unloaded[i]:>13.2f}" if unloaded else ""))
     lines += ["", f"{'hub (force of the belt)':<26} {'Fx [N]':>10} {'Fy [N]':>10} {'|F| [N]':>10} {'wrap [deg]':>11}"]
     for name, F in res.hub_forces_N.items():
         F = np.asarray(F, float)
@@ -54,6 +61,15 @@ def statics_table(res) -> str:
         px, py = res.tensioner_pivot_force_N
         lines += ["", f"tensioner: arm angle {res.tensioner_angle_deg:.3f} deg, spring moment "
                   f"{res.spring_moment_Nm:.4g} N m, pivot force ({px:.2f}, {py:.2f}) N"]
+    if res.state == "operating point":
+        lines += ["", f"drive torque (on the drive pulley, CCW +): {res.drive_torque_Nm:.4g} N m"]
+    if any(v["friction_needed"] > 1e-9 for v in res.friction.values()):
+        lines += ["", f"{'arc (capstan law)':<26} {'mu needed':>10} {'mu avail.':>10} {'slip margin':>12}"]
+        for name, v in res.friction.items():
+            have = "-" if v["friction_available"] is None else f"{v['friction_available']:.3f}"
+            margin = "-" if v["slip_margin"] is None else f"{v['slip_margin']:+.3f}"
+            lines.append(f"{name:<26} {v['friction_needed']:>10.3f} {have:>10} {margin:>12}"
+                         + ("  SLIPS" if v["slip_margin"] is not None and v["slip_margin"] < 0 else ""))
     lines.append(f"Newton iterations: {res.iterations}")
     return "\n".join(lines)
 

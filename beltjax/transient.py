@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 
@@ -45,7 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, excitation, signals, statics
+from beltjax import drive, excitation, signals, statics
 from beltjax.span_flags import run_warnings, slack_spans, slack_warning, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
@@ -111,11 +110,18 @@ def _straighten(qi_new, qi_old, scene: Scene, inst) -> jax.Array:
 
 
 def initial_state(scene: Scene):
-    """(installation, q_i(0), q_i'(0)): the static equilibrium at the initial belt speed with
-    the ``[initial]`` changes (added pulley rotations, arm angle); spans straight between
-    their moved ends.  Raises StaticsError (one line) when the drive has no equilibrium."""
+    """(installation, q_i(0), q_i'(0)): the steady state at the initial belt speed with the
+    ``[initial]`` changes (added pulley rotations, arm angle); spans straight between their
+    moved ends.  When the drive pulley's motion is prescribed, the steady state is the
+    operating point of the loads acting at t = 0 (each [[torque]] on at t = 0 with its mean, the
+    listed bearing drag: :func:`beltjax.drive.mean_body_loads`), so a drive run under steady
+    loads starts in its steady motion; a drive turned by a torque has none, and starts
+    unloaded.  Raises StaticsError (one line) when the drive has no equilibrium."""
+    at_start = () if drive.travel_follows_drive(scene) else tuple(
+        dataclasses.replace(load, amplitude_Nm=0.0 * load.amplitude_Nm, t_end_s=None) for load in scene.torques
+        if float(load.t_start_s) <= 0.0 and (load.t_end_s is None or float(load.t_end_s) > 0.0))
     # statics needs none of the transient tables: strip them so that it compiles once per drive
-    bare = dataclasses.replace(scene, initial=Initial(), simulation=Simulation(), torques=(), span_loads=())
+    bare = dataclasses.replace(scene, initial=Initial(), simulation=Simulation(), torques=at_start, span_loads=())
     st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)), allow_supercritical=True)
     inst, qi0 = st.inst, jnp.asarray(st.qi)
     ini = scene.initial

@@ -338,7 +338,7 @@ def check_scene(scene: Scene) -> Scene:
     starting with the scene-file key, as the scene file's parser gives it)."""
     p = scene_problem(scene)
     if p is not None:
-        raise SceneError(f"{p[0]}: {p[1]}", p[0], scene.source)
+        raise SceneError(p[1], p[0], source=scene.source)
     return scene
 
 

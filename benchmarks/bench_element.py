@@ -24,7 +24,6 @@ from __future__ import annotations
 import _common  # noqa: F401  (sets OPENBLAS_NUM_THREADS before numpy/jax)
 
 import time
-from functools import partial
 
 import jax
 import jax.numpy as jnp

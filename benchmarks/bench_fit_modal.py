@@ -29,6 +29,7 @@ import sys
 import time
 import tomllib
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -37,7 +38,7 @@ from _common import HERE, fmt_time, machine_info, machine_line, save_json, table
 sys.path.insert(0, str(HERE.parent))  # the repository's identification package, installed or not
 
 from beltjax import drive  # noqa: E402
-from identification import modal_fit  # noqa: E402
+from identification import least_squares, modal_fit  # noqa: E402
 
 DATASET = HERE.parent / "identification" / "examples" / "bench_modal"
 TARGET_S = 60.0
@@ -49,16 +50,21 @@ def load():
 
 
 def _internals(section):
-    """The residual / Jacobian functions and their arguments at the start, as fit_modal builds them."""
+    """The residual, and the residual with its Jacobian, as the fit's least-squares layer calls
+    them (identification.least_squares), at the start; the problem."""
     problem = modal_fit.parse(section, DATASET)
     lay = modal_fit._layout(problem)
     groups = modal_fit._groups(problem)
-    res, jac = modal_fit._make_residuals(problem, lay, groups)
     confs = problem.configurations
     W = [modal_fit.match(*modal_fit._modes_of(c.scene), c.modes) for c in confs]
     Ws, fms, _, _ = modal_fit._pad(groups, confs, W)
+    fx = modal_fit._fixed(problem, lay, groups)
+    a = (fx["stacked"], fx["idx"], tuple(Ws), tuple(fms), fx["log"], fx["p0"], 1.0, fx["paths"])
     x = jnp.zeros(len(lay.names))
-    return problem, lay, res, jac, (x, Ws, fms, 1.0)
+    residual = eqx.filter_jit(modal_fit._lsq_residual)
+    ones = jnp.ones_like(x)
+    return (problem, lambda: residual(x, a),
+            lambda: least_squares._value_and_jacobian(modal_fit._lsq_residual, x, a, ones))
 
 
 NOISE_HZ = 0.3  # standard deviation of the noise added to the synthetic frequencies
@@ -86,12 +92,12 @@ def main():
     section = load()
 
     fit0, cold_s = time_first_call(lambda: modal_fit.fit_modal(section, DATASET))
-    problem, lay, res, jac, args = _internals(section)
+    problem, res, res_jac = _internals(section)
     n_coord = [drive.n_full(c.scene) for c in problem.configurations]
     entries = {
         "fit_modal": lambda: modal_fit.fit_modal(section, DATASET),
-        "residuals": lambda: res(*args),
-        "Jacobian": lambda: jac(*args),
+        "residuals": res,
+        "residuals + Jacobian": res_jac,
     }
     records, rows = [], []
     for name, fn in entries.items():

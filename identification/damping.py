@@ -44,7 +44,6 @@ from __future__ import annotations
 import json
 import math
 import pathlib
-from dataclasses import dataclass, field
 from functools import partial
 
 import jax
@@ -188,13 +187,13 @@ def _uniform_step(t: np.ndarray, key: str, fname: str) -> float:
     bad = np.flatnonzero(d <= 0)
     if bad.size:
         i = int(bad[0])
-        raise DataError(key, f"{fname}: time_s does not increase at data row {i + 2} "
-                        f"({t[i]:.6g} s then {t[i + 1]:.6g} s)")
+        raise DataError(f"{fname}: time_s does not increase at data row {i + 2} "
+                        f"({t[i]:.6g} s then {t[i + 1]:.6g} s)", key)
     dt = float((t[-1] - t[0]) / (t.size - 1))
     dev = float(np.max(np.abs(d - dt)) / dt)
     if dev > UNIFORM_RTOL:
-        raise DataError(key, f"{fname}: time_s is not uniformly sampled (steps from {d.min():.4g} to {d.max():.4g} s, "
-                        f"{100 * dev:.3g} % off the mean {dt:.4g} s); resample it to a constant step")
+        raise DataError(f"{fname}: time_s is not uniformly sampled (steps from {d.min():.4g} to {d.max():.4g} s, "
+                        f"{100 * dev:.3g} % off the mean {dt:.4g} s); resample it to a constant step", key)
     return dt
 
 
@@ -210,28 +209,28 @@ def fit_record(t: np.ndarray, y: np.ndarray, modes: int = 1, *, offset: bool = T
     n_par = 4 * modes + (1 if offset else 0)
     need = max(MIN_POINTS, POINTS_PER_PARAMETER * n_par)
     if t.size < need:
-        raise DataError(key, f"{fname}: {t.size} points in the fitted window; at least {need} are needed "
-                        f"for {modes} mode(s)")
+        raise DataError(f"{fname}: {t.size} points in the fitted window; at least {need} are needed "
+                        f"for {modes} mode(s)", key)
     dt = _uniform_step(t, key, fname)
     tau = t - t[0]
     T = float(tau[-1])
     scale = float(np.std(y)) if offset else float(np.sqrt(np.mean(y**2)))
     if not scale > 0 or scale <= 1e-12 * max(float(np.max(np.abs(y))), 1e-300):
-        raise DataError(key, f"{fname}: the response is constant: no oscillation, nothing to fit")
+        raise DataError(f"{fname}: the response is constant: no oscillation, nothing to fit", key)
     # work in units where the window lasts 1 and the response is O(1)
     ys, taus = y / scale, tau / T
     guess = _pencil_guess(taus, ys, dt / T, modes, offset)
     if not isinstance(guess, tuple):
         found = guess or 0
-        raise DataError(key, f"{fname}: found {found} oscillating component(s) where modes = {modes} were asked: "
+        raise DataError(f"{fname}: found {found} oscillating component(s) where modes = {modes} were asked: "
                         "no oscillation to fit, frequency and damping not identifiable "
-                        "(lower modes or check the record)")
+                        "(lower modes or check the record)", key)
     sig, om = guess
     coef = _linear_amplitudes(taus, ys, sig, om, offset)
     p0 = np.concatenate(([coef[:1]] if offset else []) + [sig, om, coef[-2 * modes :]])
     p, r, J = _levenberg_marquardt(p0, taus, ys, modes, offset)
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(r))):
-        raise DataError(key, f"{fname}: the fit did not converge (non-finite parameters)")
+        raise DataError(f"{fname}: the fit did not converge (non-finite parameters)", key)
     dof = max(ys.size - p.size, 1)
     s2 = float(r @ r) / dof
     rho = float(r[1:] @ r[:-1] / (r @ r)) if r @ r > 0 else 0.0
@@ -240,7 +239,7 @@ def fit_record(t: np.ndarray, y: np.ndarray, modes: int = 1, *, offset: bool = T
     try:
         cov = s2 * np.linalg.pinv(J.T @ J) * infl**2
     except np.linalg.LinAlgError:
-        raise DataError(key, f"{fname}: the fit's covariance could not be formed (degenerate modes)") from None
+        raise DataError(f"{fname}: the fit's covariance could not be formed (degenerate modes)", key) from None
     o = 1 if offset else 0
     idx_s, idx_w = o + np.arange(modes), o + modes + np.arange(modes)
     idx_a, idx_b = o + 2 * modes + np.arange(modes), o + 3 * modes + np.arange(modes)
@@ -269,18 +268,18 @@ def fit_record(t: np.ndarray, y: np.ndarray, modes: int = 1, *, offset: bool = T
         where = f"{fname}: the mode at {fn[m]:.4g} Hz"
         cycles = om[m] / (2 * np.pi) * T
         if cycles < MIN_CYCLES or zeta[m] >= 0.9:
-            raise DataError(key, f"{fname}: no oscillation (a fitted component makes {cycles:.2g} cycles in the "
+            raise DataError(f"{fname}: no oscillation (a fitted component makes {cycles:.2g} cycles in the "
                             f"window, zeta {zeta[m]:.2g}): frequency and damping not identifiable; lower modes "
-                            "or check the record")
+                            "or check the record", key)
         if amp[m] < SIGNIFICANCE * amp_se[m]:
-            raise DataError(key, f"{where} has an amplitude at the noise level ({amp[m]:.3g} ± {amp_se[m]:.2g}): "
-                            f"the record shows fewer than modes = {modes} oscillating components")
+            raise DataError(f"{where} has an amplitude at the noise level ({amp[m]:.3g} ± {amp_se[m]:.2g}): "
+                            f"the record shows fewer than modes = {modes} oscillating components", key)
         if zeta[m] < -SIGNIFICANCE * zeta_se[m]:
-            raise DataError(key, f"{where} grows instead of decaying (zeta = {zeta[m]:.3g} ± {zeta_se[m]:.2g}): "
-                            "damping not identifiable from this record")
+            raise DataError(f"{where} grows instead of decaying (zeta = {zeta[m]:.3g} ± {zeta_se[m]:.2g}): "
+                            "damping not identifiable from this record", key)
         if zeta[m] < SIGNIFICANCE * zeta_se[m]:
-            raise DataError(key, f"{where} shows no measurable decay (zeta = {zeta[m]:.3g} ± {zeta_se[m]:.2g}): "
-                            "damping not identifiable (none, or too light for this record's length and noise)")
+            raise DataError(f"{where} shows no measurable decay (zeta = {zeta[m]:.3g} ± {zeta_se[m]:.2g}): "
+                            "damping not identifiable (none, or too light for this record's length and noise)", key)
     order = np.argsort(fn)
     fitted = np.asarray(decay_model(jnp.asarray(p), jnp.asarray(taus), modes, offset)) * scale
     c = float(p[0] * scale) if offset else None
@@ -311,21 +310,21 @@ def fit_record(t: np.ndarray, y: np.ndarray, modes: int = 1, *, offset: bool = T
 def _records(section: dict, key: str) -> list[tuple[str, dict]]:
     """(key of the record, its table) for ``[[key.record]]`` tables or a single ``[key]`` record."""
     if not isinstance(section, dict):
-        raise DataError(key, "must be a table")
+        raise DataError("must be a table", key)
     if "record" in section:
         extra = [k for k in section if k != "record"]
         if extra:
-            raise DataError(f"{key}.{extra[0]}", "unknown key next to [[record]] tables "
-                            "(record keys go in each record)")
+            raise DataError("unknown key next to [[record]] tables "
+                            "(record keys go in each record)", f"{key}.{extra[0]}")
         recs = section["record"]
         if isinstance(recs, dict):
             recs = [recs]
         if not isinstance(recs, list) or not recs or not all(isinstance(r, dict) for r in recs):
-            raise DataError(f"{key}.record", "must be one or more [[record]] tables")
+            raise DataError("must be one or more [[record]] tables", f"{key}.record")
         return [(f"{key}.record[{i}]", r) for i, r in enumerate(recs)]
     if "file" in section:
         return [(key, section)]
-    raise DataError(key, "needs [[impulse.record]] tables (file = ..., modes = ...)")
+    raise DataError("needs [[impulse.record]] tables (file = ..., modes = ...)", key)
 
 
 def fit_impulse(section: dict, base: pathlib.Path, key: str = "impulse") -> ImpulseFit:
@@ -335,30 +334,29 @@ def fit_impulse(section: dict, base: pathlib.Path, key: str = "impulse") -> Impu
     for rkey, rec in _records(section, key):
         unknown = [k for k in rec if k not in RECORD_KEYS]
         if unknown:
-            raise DataError(f"{rkey}.{unknown[0]}", f"unknown key (known: {', '.join(RECORD_KEYS)})")
+            raise DataError(f"unknown key (known: {', '.join(RECORD_KEYS)})", f"{rkey}.{unknown[0]}")
         fname = rec.get("file")
         if not isinstance(fname, str) or not fname:
-            raise DataError(f"{rkey}.file", "missing (a CSV file with columns time_s, response)")
+            raise DataError("missing (a CSV file with columns time_s, response)", f"{rkey}.file")
         modes = rec.get("modes", 1)
         if isinstance(modes, bool) or not isinstance(modes, int) or not 1 <= modes <= MAX_MODES:
-            raise DataError(f"{rkey}.modes", f"must be a whole number from 1 to {MAX_MODES}, got {show(modes)}")
+            raise DataError(f"must be a whole number from 1 to {MAX_MODES}, got {show(modes)}", f"{rkey}.modes")
         offset = rec.get("offset", True)
         if not isinstance(offset, bool):
-            raise DataError(f"{rkey}.offset", f"must be true or false, got {show(offset)}")
+            raise DataError(f"must be true or false, got {show(offset)}", f"{rkey}.offset")
         name = rec.get("name", pathlib.Path(fname).stem)
         if not isinstance(name, str) or not name:
-            raise DataError(f"{rkey}.name", f"must be a non-empty string, got {show(name)}")
+            raise DataError(f"must be a non-empty string, got {show(name)}", f"{rkey}.name")
         if _safe(name) in plotted:  # the record's plot file would overwrite the other's
-            raise DataError(f"{rkey}.{'name' if 'name' in rec else 'file'}",
-                            f"record name {show(name)} is taken by {plotted[_safe(name)]} (its plot is named by "
-                            "it; a name defaults to the file's stem): give each record its own name")
+            raise DataError(f"record name {show(name)} is taken by {plotted[_safe(name)]} (its plot is named by "
+                            "it; a name defaults to the file's stem): give each record its own name", f"{rkey}.{'name' if 'name' in rec else 'file'}")
         plotted[_safe(name)] = rkey
         data = read_csv(dataset_file(base, fname, f"{rkey}.file"), ["time_s", "response"], f"{rkey} ({fname})")
         t, y = data["time_s"], data["response"]
         t0 = number(rec, "t_start_s", rkey) if "t_start_s" in rec else float(t[0])
         t1 = number(rec, "t_end_s", rkey) if "t_end_s" in rec else float(t[-1])
         if t1 <= t0:
-            raise DataError(f"{rkey}.t_end_s", f"must be after t_start_s ({t0:.6g} s), got {t1:.6g} s")
+            raise DataError(f"must be after t_start_s ({t0:.6g} s), got {t1:.6g} s", f"{rkey}.t_end_s")
         _uniform_step(t, rkey, fname)
         keep = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
         fits.append(fit_record(t[keep], y[keep], modes, offset=offset, key=rkey, name=name, fname=fname))

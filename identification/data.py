@@ -17,9 +17,6 @@ from beltjax.tomltable import show
 class DataError(BeltjaxError):
     """Bad identification data: one line naming the key, file or cause."""
 
-    def __init__(self, key: str, message: str):
-        super().__init__(message, key)
-
 
 def dataset_file(base, name: str, key: str) -> pathlib.Path:
     """The file ``name`` (as the dataset writes it) of a dataset whose folder is ``base``.
@@ -28,25 +25,25 @@ def dataset_file(base, name: str, key: str) -> pathlib.Path:
     and a link that resolves outside the folder are :class:`DataError` naming ``key``.
     """
     if not isinstance(name, str) or not name:
-        raise DataError(key, f"expected a file name (relative to the dataset's folder), got {show(name)}")
+        raise DataError(f"expected a file name (relative to the dataset's folder), got {show(name)}", key)
     if "\0" in name:
-        raise DataError(key, "a file name cannot hold a NUL character")
+        raise DataError("a file name cannot hold a NUL character", key)
     pure = pathlib.PurePath(name)
     if pure.is_absolute():
-        raise DataError(key, f"{show(name)} is an absolute path: a dataset names only files inside its "
-                             "own folder, relative to it")
+        raise DataError(f"{show(name)} is an absolute path: a dataset names only files inside its "
+                             "own folder, relative to it", key)
     if ".." in pure.parts:
-        raise DataError(key, f"{show(name)} leads out of the dataset's folder through '..': a dataset names "
-                             "only files inside its own folder")
+        raise DataError(f"{show(name)} leads out of the dataset's folder through '..': a dataset names "
+                             "only files inside its own folder", key)
     root = pathlib.Path(base).resolve()
     path = root / pure
     try:
         real = path.resolve()
     except (OSError, RuntimeError):  # a loop of links
-        raise DataError(key, f"{show(name)}: a link that cannot be resolved") from None
+        raise DataError(f"{show(name)}: a link that cannot be resolved", key) from None
     if not real.is_relative_to(root):
-        raise DataError(key, f"{show(name)} is a link to a file outside the dataset's folder: a dataset "
-                             "names only files inside its own folder")
+        raise DataError(f"{show(name)} is a link to a file outside the dataset's folder: a dataset "
+                             "names only files inside its own folder", key)
     return path
 
 
@@ -62,35 +59,35 @@ def read_csv(path: pathlib.Path, columns: Sequence[str], key: str, min_rows: int
     name = path.name if len(path.name) <= 60 else path.name[:40] + "..."
 
     def fail(_, message):
-        raise DataError(key, f"{name}: {message}")
+        raise DataError(f"{name}: {message}", key)
 
     text = textfile.read_text(path, "csv", fail)
     lines = [(n, ln) for n, ln in enumerate(text.splitlines(), start=1)
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        raise DataError(key, f"{name} is empty")
+        raise DataError(f"{name} is empty", key)
     header = [h.strip() for h in lines[0][1].split(",")]
     missing = [c for c in columns if c not in header]
     if missing:
-        raise DataError(key, f"{name} lacks column(s) {', '.join(missing)} (its header, line {lines[0][0]}, "
-                             f"has {len(header)} column(s))")
+        raise DataError(f"{name} lacks column(s) {', '.join(missing)} (its header, line {lines[0][0]}, "
+                             f"has {len(header)} column(s))", key)
     idx = [header.index(c) for c in columns]
     rows = []
     for n, ln in lines[1:]:
         cells = [c.strip() for c in ln.split(",")]
         if len(cells) != len(header):
-            raise DataError(key, f"{name} line {n}: {len(cells)} values for {len(header)} columns")
+            raise DataError(f"{name} line {n}: {len(cells)} values for {len(header)} columns", key)
         vals = []
         for c, i in zip(columns, idx):
             try:
                 vals.append(float(cells[i]))
             except ValueError:
-                raise DataError(key, f"{name} line {n}: not a number in column {i + 1} ({c})") from None
+                raise DataError(f"{name} line {n}: not a number in column {i + 1} ({c})", key) from None
         if not all(math.isfinite(v) for v in vals):
-            raise DataError(key, f"{name} line {n}: NaN or infinite value")
+            raise DataError(f"{name} line {n}: NaN or infinite value", key)
         rows.append(vals)
     if len(rows) < min_rows:
-        raise DataError(key, f"{name} has {len(rows)} data rows; at least {min_rows} are needed")
+        raise DataError(f"{name} has {len(rows)} data rows; at least {min_rows} are needed", key)
     data = np.asarray(rows, dtype=np.float64)
     return {c: data[:, j] for j, c in enumerate(columns)}
 
@@ -100,15 +97,15 @@ def number(table: dict, name: str, key: str, positive: bool = False, default=Non
     if name not in table:
         if default is not None:
             return float(default)
-        raise DataError(f"{key}.{name}", "missing")
+        raise DataError("missing", f"{key}.{name}")
     v = table[name]
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise DataError(f"{key}.{name}", f"must be a number, got {show(v)}")
+        raise DataError(f"must be a number, got {show(v)}", f"{key}.{name}")
     if isinstance(v, int) and not -2**63 <= v < 2**63:
-        raise DataError(f"{key}.{name}", f"must be a number a float64 holds, got {show(v)}")
+        raise DataError(f"must be a number a float64 holds, got {show(v)}", f"{key}.{name}")
     v = float(v)
     if not math.isfinite(v):
-        raise DataError(f"{key}.{name}", "must be finite")
+        raise DataError("must be finite", f"{key}.{name}")
     if positive and v <= 0:
-        raise DataError(f"{key}.{name}", f"must be > 0, got {v:g}")
+        raise DataError(f"must be > 0, got {v:g}", f"{key}.{name}")
     return v

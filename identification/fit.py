@@ -45,14 +45,14 @@ def load(path: pathlib.Path) -> dict:
     path = pathlib.Path(path)
 
     def fail(key, message):
-        raise DataError(key, message)
+        raise DataError(message, key)
 
     data = textfile.load_toml(path, "dataset", textfile.keyed(fail))
     unknown = [k for k in data if k not in SECTIONS]
     if unknown:
-        raise DataError(unknown[0], f"unknown section in {path.name} (known: {', '.join(SECTIONS)})")
+        raise DataError(f"unknown section in {path.name} (known: {', '.join(SECTIONS)})", unknown[0])
     if not data:
-        raise DataError("", f"{path}: no section to fit (add one of {', '.join(SECTIONS)})")
+        raise DataError(f"{path}: no section to fit (add one of {', '.join(SECTIONS)})", "")
     return data
 
 

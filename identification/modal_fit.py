@@ -41,9 +41,7 @@ apart, never returned as a fit.
 
 from __future__ import annotations
 
-import math
 import pathlib
-import re
 import time
 from dataclasses import dataclass, field
 
@@ -52,10 +50,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, drive_modal, parameters, statics
-from beltjax.scene import Scene, SceneError, load_scene
-from beltjax.tomltable import check_document, show
+from beltjax.scene import Scene
+from beltjax.tomltable import show
 from identification import least_squares
-from identification.data import DataError, dataset_file, number
+from identification.data import DataError
 from identification.modal_problem import (MAX_ITERATIONS, _CONF_KEYS, _KEYS, _LABEL, _POSITIVE, Configuration, Measured,  # noqa: F401
                                          Problem, _fail, _parse_configuration, _parse_mode, _start_value,
                                          _strings, parse)
@@ -139,12 +137,12 @@ def match(freqs, labels, modes: list[Measured], conf_key: str = "") -> np.ndarra
         cand = _candidates(labels, m)
         if not cand:
             kinds = sorted({lab for lab in labels if lab != "rigid body"}, key=labels.index)[:8]
-            raise DataError(m.key, f"no model mode labelled {show(m.label)}"
-                            f"{' in span ' + m.span if m.span else ''} (model modes: {'; '.join(kinds)} ...)")
+            raise DataError(f"no model mode labelled {show(m.label)}"
+                            f"{' in span ' + m.span if m.span else ''} (model modes: {'; '.join(kinds)} ...)", m.key)
         k = min(cand, key=lambda c: abs(freqs[c] - m.frequency_hz))
         if abs(freqs[k] - m.frequency_hz) > MATCH_RTOL * m.frequency_hz:
-            raise DataError(m.key, f"{m.label} at {m.frequency_hz:g} Hz has no matching model mode: the nearest "
-                            f"{m.kind} mode of order {m.order} is at {freqs[k]:.4g} Hz")
+            raise DataError(f"{m.label} at {m.frequency_hz:g} Hz has no matching model mode: the nearest "
+                            f"{m.kind} mode of order {m.order} is at {freqs[k]:.4g} Hz", m.key)
         group = [c for c in cand if abs(freqs[c] - freqs[k]) <= GROUP_RTOL * freqs[k]]
         W[i, group] = 1.0 / len(group)
     return W
@@ -169,7 +167,7 @@ def _labelling_scene(scene: Scene, paths, values) -> Scene:
 def _modes_of(scene: Scene):
     res = drive_modal.analyse_modes(scene)
     if not res.stable:
-        raise DataError("modal", f"{scene.source}: the drive is unstable at these parameters")
+        raise DataError(f"{scene.source}: the drive is unstable at these parameters", "modal")
     return res.frequencies_hz, res.labels
 
 
@@ -308,12 +306,6 @@ def _residuals_pure(x, stacked, idx, Ws, f_meas, log, p0, sigma, paths):
     return jnp.concatenate(out) / sigma
 
 
-# module level, so that fits of like datasets (same structure, shapes and fitted paths) share
-# one compilation
-_RESIDUALS = jax.jit(_residuals_pure, static_argnames=("paths",))
-_JACOBIAN = jax.jit(jax.jacfwd(_residuals_pure), static_argnames=("paths",))
-
-
 def _fixed(problem: Problem, lay: _Layout, groups) -> dict:
     """The residuals' arguments that stay fixed during a fit: stacked canonical scenes and
     parameter indices per group of like configurations, log flags, starting values, paths."""
@@ -321,23 +313,6 @@ def _fixed(problem: Problem, lay: _Layout, groups) -> dict:
     return dict(stacked=tuple(_stack([drive.canonical(confs[i].scene) for i in g]) for g in groups),
                 idx=tuple(jnp.asarray(lay.index[g]) for g in groups),
                 log=jnp.asarray(lay.log), p0=jnp.asarray(lay.p0), paths=tuple(problem.paths))
-
-
-def _make_residuals(problem: Problem, lay: _Layout, groups):
-    """(r, dr/dx): functions of (x, Ws, f_meas, sigma) over all configurations (one vmap per
-    group of like configurations), compiled once per structure (the benchmark times them; the
-    fit runs them inside :func:`_solve`)."""
-    fixed = _fixed(problem, lay, groups)
-
-    def residuals(x, Ws, f_meas, sigma):
-        return _RESIDUALS(x, fixed["stacked"], fixed["idx"], tuple(Ws), tuple(f_meas), fixed["log"], fixed["p0"],
-                          sigma, paths=fixed["paths"])
-
-    def jacobian(x, Ws, f_meas, sigma):
-        return _JACOBIAN(x, fixed["stacked"], fixed["idx"], tuple(Ws), tuple(f_meas), fixed["log"], fixed["p0"],
-                         sigma, paths=fixed["paths"])
-
-    return residuals, jacobian
 
 
 def _pad(groups, confs, Wlist):
@@ -412,9 +387,9 @@ def _identifiability(J, names):
     if s.size == 0 or s[0] == 0 or s[-1] < IDENTIFIABLE_RCOND * s[0]:
         v = vt[-1]
         who = [names[k] for k in np.argsort(-np.abs(v)) if abs(v[k]) > 0.25]
-        raise DataError("modal.parameters", f"not identifiable from these modes: {', '.join(who)} "
+        raise DataError(f"not identifiable from these modes: {', '.join(who)} "
                         f"(the frequencies do not change independently with "
-                        f"{'it' if len(who) == 1 else 'them'}; fix or drop {'it' if len(who) == 1 else 'one'})")
+                        f"{'it' if len(who) == 1 else 'them'}; fix or drop {'it' if len(who) == 1 else 'one'})", "modal.parameters")
 
 
 def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: bool = False) -> ModalFit:
@@ -426,8 +401,8 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
     groups = _groups(problem)
     m_total = sum(len(c.modes) for c in confs)
     if m_total <= len(lay.names):
-        raise DataError("modal", f"{m_total} measured modes for {len(lay.names)} fitted values: "
-                        "more modes than parameters are needed")
+        raise DataError(f"{m_total} measured modes for {len(lay.names)} fitted values: "
+                        "more modes than parameters are needed", "modal")
     fixed = _fixed(problem, lay, groups)
     x = jnp.zeros(len(lay.names))
     hist_all, rounds, iterations = [], 0, 0
@@ -455,7 +430,7 @@ def fit_modal(section: dict, base: pathlib.Path, key: str = "modal", progress: b
             message(f"modal fit: round {rounds}, {len(lay.names)} values, {m_total} modes")
         start = _solve(fixed, x, Ws, fms, sig0, 0)
         if not np.all(np.isfinite(np.asarray(start.residual))):
-            raise DataError("modal", "the model cannot be evaluated at the starting values (NaN frequencies)")
+            raise DataError("the model cannot be evaluated at the starting values (NaN frequencies)", "modal")
         _identifiability(np.asarray(start.jacobian)[mask] * _unit_scale(x, lay), lay.names)
         sol = _solve(fixed, x, Ws, fms, sig0, problem.max_iterations, progress)
         x, n_it = sol.x, int(sol.steps)

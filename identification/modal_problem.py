@@ -55,39 +55,39 @@ class Configuration:
 
 
 def _fail(key: str, message: str):
-    raise DataError(key, f"{key}: {message}")
+    raise DataError(f"{key}: {message}", key)
 
 
 def _parse_mode(m, key: str) -> Measured | None:
     if not isinstance(m, dict):
-        raise DataError(key, "a mode is a table { label = \"1st transverse\", frequency_hz = 30.0 }")
+        raise DataError("a mode is a table { label = \"1st transverse\", frequency_hz = 30.0 }", key)
     unknown = set(m) - {"label", "span", "frequency_hz"}
     if unknown:
-        raise DataError(f"{key}.{sorted(unknown)[0]}", "unknown key (use label, span, frequency_hz)")
+        raise DataError("unknown key (use label, span, frequency_hz)", f"{key}.{sorted(unknown)[0]}")
     label = m.get("label")
     if not isinstance(label, str):
-        raise DataError(f"{key}.label", "missing or not a string (e.g. \"1st transverse\")")
+        raise DataError("missing or not a string (e.g. \"1st transverse\")", f"{key}.label")
     if label.strip().lower().startswith("rigid"):
         return None
     hit = _LABEL.match(label)
     if not hit:
-        raise DataError(f"{key}.label", f"{show(label)} is not '<n>th transverse|longitudinal|rotational'")
+        raise DataError(f"{show(label)} is not '<n>th transverse|longitudinal|rotational'", f"{key}.label")
     f = number(m, "frequency_hz", key, positive=True)
     span = m.get("span")
     if span is not None and not isinstance(span, str):
-        raise DataError(f"{key}.span", "must be a span name such as \"crank-alternator\"")
+        raise DataError("must be a span name such as \"crank-alternator\"", f"{key}.span")
     return Measured(label.strip(), int(hit.group(1)), hit.group(2).lower(), span, f, key)
 
 
 def _parse_configuration(c, i: int, base: pathlib.Path) -> Configuration:
     key = f"modal.configuration[{i}]"
     if not isinstance(c, dict):
-        raise DataError(key, "must be a table with scene and modes")
+        raise DataError("must be a table with scene and modes", key)
     unknown = set(c) - _CONF_KEYS
     if unknown:
-        raise DataError(f"{key}.{sorted(unknown)[0]}", f"unknown key (use {', '.join(sorted(_CONF_KEYS))})")
+        raise DataError(f"unknown key (use {', '.join(sorted(_CONF_KEYS))})", f"{key}.{sorted(unknown)[0]}")
     if not isinstance(c.get("scene"), str):
-        raise DataError(f"{key}.scene", "missing: the scene file of this configuration")
+        raise DataError("missing: the scene file of this configuration", f"{key}.scene")
     path = dataset_file(base, c["scene"], f"{key}.scene")
     try:
         scene = load_scene(path)
@@ -95,35 +95,35 @@ def _parse_configuration(c, i: int, base: pathlib.Path) -> Configuration:
         msg = str(exc)
         if exc.key == str(path):  # about the file itself: it names the file, not a key
             msg = msg[len(exc.key):].lstrip(": ")
-        raise DataError(f"{key}.scene", f"{path.name}: {msg}") from None
+        raise DataError(f"{path.name}: {msg}", f"{key}.scene") from None
     modes = c.get("modes")
     if not isinstance(modes, list) or not modes:
-        raise DataError(f"{key}.modes", "missing or empty: list the measured modes")
+        raise DataError("missing or empty: list the measured modes", f"{key}.modes")
     parsed = [_parse_mode(m, f"{key}.modes[{j}]") for j, m in enumerate(modes)]
     parsed = [m for m in parsed if m is not None]
     if not parsed:
-        raise DataError(f"{key}.modes", "only rigid-body modes: nothing to fit")
+        raise DataError("only rigid-body modes: nothing to fit", f"{key}.modes")
     spans = drive.span_names(scene)
     for m in parsed:
         if m.span is not None and m.span not in spans:
-            raise DataError(f"{m.key}.span", f"no span {show(m.span)} in {path.name} (spans: {', '.join(spans)})")
+            raise DataError(f"no span {show(m.span)} in {path.name} (spans: {', '.join(spans)})", f"{m.key}.span")
     name = c.get("name", path.stem)
     if not isinstance(name, str) or not name:
-        raise DataError(f"{key}.name", f"must be a non-empty string, got {show(name)}")
+        raise DataError(f"must be a non-empty string, got {show(name)}", f"{key}.name")
     return Configuration(name, scene, parsed, key)
 
 
 def _strings(section, name, required):
     v = section.get(name, [] if not required else None)
     if v is None:
-        raise DataError(f"modal.{name}", "missing: list the parameter paths to fit, e.g. [\"belt.EI\"]")
+        raise DataError("missing: list the parameter paths to fit, e.g. [\"belt.EI\"]", f"modal.{name}")
     if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
-        raise DataError(f"modal.{name}", "must be a list of parameter paths (strings)")
+        raise DataError("must be a list of parameter paths (strings)", f"modal.{name}")
     if len(set(v)) != len(v):
-        raise DataError(f"modal.{name}", "lists a parameter twice")
+        raise DataError("lists a parameter twice", f"modal.{name}")
     if "belt.length" in v and "belt.static_tension" in v:
-        raise DataError(f"modal.{name}", "lists both belt.length and belt.static_tension: the belt is given by "
-                                         "one of them, so setting one overwrites the other")
+        raise DataError("lists both belt.length and belt.static_tension: the belt is given by "
+                                         "one of them, so setting one overwrites the other", f"modal.{name}")
     return v
 
 
@@ -141,41 +141,41 @@ class Problem:
 def parse(section: dict, base: pathlib.Path) -> Problem:
     """The ``[modal]`` section of a dataset (see the module docstring); :class:`DataError` if bad."""
     if not isinstance(section, dict):
-        raise DataError("modal", "must be a table")
+        raise DataError("must be a table", "modal")
     check_document(section, _fail, key="modal")  # bounds of every value, also for a section given as a dict
     unknown = set(section) - _KEYS
     if unknown:
-        raise DataError(f"modal.{sorted(unknown)[0]}", f"unknown key (use {', '.join(sorted(_KEYS))})")
+        raise DataError(f"unknown key (use {', '.join(sorted(_KEYS))})", f"modal.{sorted(unknown)[0]}")
     paths = _strings(section, "parameters", True)
     if not paths:
-        raise DataError("modal.parameters", "empty: name at least one parameter to fit")
+        raise DataError("empty: name at least one parameter to fit", "modal.parameters")
     per = _strings(section, "per_configuration", False)
     for p in per:
         if p not in paths:
-            raise DataError("modal.per_configuration", f"{show(p)} is not among modal.parameters")
+            raise DataError(f"{show(p)} is not among modal.parameters", "modal.per_configuration")
     confs = section.get("configuration")
     if not isinstance(confs, list) or not confs:
-        raise DataError("modal.configuration", "missing: add [[modal.configuration]] tables")
+        raise DataError("missing: add [[modal.configuration]] tables", "modal.configuration")
     configurations = [_parse_configuration(c, i, base) for i, c in enumerate(confs)]
     named: dict[str, str] = {}
     for raw, c in zip(confs, configurations):  # a name keys the per-configuration values: no two alike
         if c.name in named:
             given = "name" if "name" in raw else "scene"
-            raise DataError(f"{c.key}.{given}", f"configuration name {show(c.name)} is also that of "
+            raise DataError(f"configuration name {show(c.name)} is also that of "
                                                 f"{named[c.name]} (a name defaults to the scene file's stem): "
-                                                "give each configuration its own name")
+                                                "give each configuration its own name", f"{c.key}.{given}")
         named[c.name] = c.key
     for c in configurations:
         for p in paths:
             try:
                 parameters.check(c.scene, p)
             except parameters.ParameterError as exc:
-                raise DataError("modal.parameters", f"{exc} (in {c.key})") from None
+                raise DataError(f"{exc} (in {c.key})", "modal.parameters") from None
     sigma = section.get("frequency_std_hz")
     sigma = None if sigma is None else number(section, "frequency_std_hz", "modal", positive=True)
     it = section.get("max_iterations", 50)
     if isinstance(it, bool) or not isinstance(it, int) or not 1 <= it <= MAX_ITERATIONS:
-        raise DataError("modal.max_iterations", f"must be a whole number from 1 to {MAX_ITERATIONS}, got {show(it)}")
+        raise DataError(f"must be a whole number from 1 to {MAX_ITERATIONS}, got {show(it)}", "modal.max_iterations")
     return Problem(configurations, paths, per, sigma, it)
 
 

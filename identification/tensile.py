@@ -62,10 +62,8 @@ import math
 import pathlib
 from dataclasses import dataclass
 
-import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 
 import beltjax  # noqa: F401  (float64)
 from beltjax.tomltable import show
@@ -167,9 +165,9 @@ class Record:
 def _string(table: dict, name: str, key: str) -> str:
     v = table.get(name)
     if v is None:
-        raise DataError(f"{key}.{name}", "missing")
+        raise DataError("missing", f"{key}.{name}")
     if not isinstance(v, str) or not v.strip():
-        raise DataError(f"{key}.{name}", f"must be a file name (string), got {show(v)}")
+        raise DataError(f"must be a file name (string), got {show(v)}", f"{key}.{name}")
     return v
 
 
@@ -177,10 +175,10 @@ def read_record(table, i: int, base: pathlib.Path, key: str) -> Record:
     """Read and sine-fit record ``i`` of the section (one-line :class:`DataError` on bad data)."""
     rkey = f"{key}.record[{i}]"
     if not isinstance(table, dict):
-        raise DataError(rkey, "must be a table with file and frequency_hz")
+        raise DataError("must be a table with file and frequency_hz", rkey)
     unknown = sorted(set(table) - _RECORD_KEYS)
     if unknown:
-        raise DataError(f"{rkey}.{unknown[0]}", f"unknown key (use {', '.join(sorted(_RECORD_KEYS))})")
+        raise DataError(f"unknown key (use {', '.join(sorted(_RECORD_KEYS))})", f"{rkey}.{unknown[0]}")
     name = _string(table, "file", rkey)
     f = number(table, "frequency_hz", rkey, positive=True)
     fkey = f"{rkey}.file"
@@ -190,23 +188,23 @@ def read_record(table, i: int, base: pathlib.Path, key: str) -> Record:
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.argmax(dt <= 0))
-        raise DataError(fkey, f"{fname}: time_s does not increase at data row {k + 2}")
+        raise DataError(f"{fname}: time_s does not increase at data row {k + 2}", fkey)
     duration = float(t[-1] - t[0])
     cycles = duration * f
     if cycles < 1.0 - 1e-9:
-        raise DataError(fkey, f"{fname} spans {duration:.4g} s = {cycles:.3g} cycles at {f:g} Hz; "
-                        "at least one full cycle is needed")
+        raise DataError(f"{fname} spans {duration:.4g} s = {cycles:.3g} cycles at {f:g} Hz; "
+                        "at least one full cycle is needed", fkey)
     per_cycle = (len(t) - 1) / cycles
     if per_cycle < MIN_SAMPLES_PER_CYCLE:
-        raise DataError(fkey, f"{fname} has {per_cycle:.3g} samples per cycle at {f:g} Hz; "
-                        f"at least {MIN_SAMPLES_PER_CYCLE} are needed")
+        raise DataError(f"{fname} has {per_cycle:.3g} samples per cycle at {f:g} Hz; "
+                        f"at least {MIN_SAMPLES_PER_CYCLE} are needed", fkey)
     fits = {}
     for label, y in (("displacement", x), ("force", F)):
         s = sine_fit(t, y, f)
         if not (s.residual_share <= MAX_RESIDUAL_SHARE and abs(s.amplitude) > 0):
-            raise DataError(fkey, f"{fname}: {label} is not sinusoidal at {f:g} Hz: the sine fit leaves "
+            raise DataError(f"{fname}: {label} is not sinusoidal at {f:g} Hz: the sine fit leaves "
                             f"{100 * min(s.residual_share, 1.0):.0f} % of its RMS "
-                            f"(at most {100 * MAX_RESIDUAL_SHARE:.0f} % accepted)")
+                            f"(at most {100 * MAX_RESIDUAL_SHARE:.0f} % accepted)", fkey)
         fits[label] = s
     G, cov = complex_modulus(fits["displacement"], fits["force"])
     floor = (_SIGMA_FLOOR * abs(G)) ** 2
@@ -257,28 +255,28 @@ def _identifiability(J: np.ndarray, records: list[Record], key: str) -> None:
     nf = f"{len(freqs)} distinct frequenc{'y' if len(freqs) == 1 else 'ies'}: {fl} Hz"
     why = (f"{nf}; each gives 2 of the 8 real equations, so at least 4 distinct frequencies are needed"
            if len(freqs) < 4 else f"{nf}; the two power terms cannot be told apart, e.g. a vanishing a2 or b1 = b2")
-    raise DataError(f"{key}.record", f"the power-sum model is not identifiable from these records: Jacobian rank "
-                    f"{rank} of 8 ({why}); not identifiable: {', '.join(who) if who else ', '.join(PARAMETER_NAMES)}")
+    raise DataError(f"the power-sum model is not identifiable from these records: Jacobian rank "
+                    f"{rank} of 8 ({why}); not identifiable: {', '.join(who) if who else ', '.join(PARAMETER_NAMES)}", f"{key}.record")
 
 
 def parse_section(section: dict, base: pathlib.Path, key: str = "tensile") -> tuple[float, float, list[Record]]:
     """Specimen length (m), scene frequency (Hz) and the sine-fitted records of a ``[tensile]`` table."""
     if not isinstance(section, dict):
-        raise DataError(key, "must be a table with specimen_length_m and [[tensile.record]] tables")
+        raise DataError("must be a table with specimen_length_m and [[tensile.record]] tables", key)
     unknown = sorted(set(section) - _SECTION_KEYS)
     if unknown:
-        raise DataError(f"{key}.{unknown[0]}", f"unknown key (use {', '.join(sorted(_SECTION_KEYS))})")
+        raise DataError(f"unknown key (use {', '.join(sorted(_SECTION_KEYS))})", f"{key}.{unknown[0]}")
     L = number(section, "specimen_length_m", key, positive=True)
     fs = number(section, "scene_frequency_hz", key, positive=True, default=SCENE_FREQUENCY_HZ)
     recs = section.get("record")
     if recs is None:
-        raise DataError(f"{key}.record", "missing: add [[tensile.record]] tables (file, frequency_hz)")
+        raise DataError("missing: add [[tensile.record]] tables (file, frequency_hz)", f"{key}.record")
     if not isinstance(recs, list):
-        raise DataError(f"{key}.record", "must be an array of tables ([[tensile.record]])")
+        raise DataError("must be an array of tables ([[tensile.record]])", f"{key}.record")
     if len(recs) < 4:
-        raise DataError(f"{key}.record", f"{len(recs)} record(s); the power-sum model has 8 real parameters "
+        raise DataError(f"{len(recs)} record(s); the power-sum model has 8 real parameters "
                         "(a1, a2, b1, b2 complex) and each record gives 2 equations: at least 4 records, "
-                        "at 4 distinct frequencies, are needed")
+                        "at 4 distinct frequencies, are needed", f"{key}.record")
     records = [read_record(r, i, base, key) for i, r in enumerate(recs)]
     return L, fs, records
 
@@ -297,7 +295,7 @@ def fit_records(records: list[Record], key: str = "tensile") -> dict:
     final = h_lm[:, -1]
     finite = np.isfinite(final) & np.all(np.isfinite(thetas), axis=1)
     if not finite.any():
-        raise DataError(f"{key}.record", "the power-sum fit did not converge (non-finite loss from every start)")
+        raise DataError("the power-sum fit did not converge (non-finite loss from every start)", f"{key}.record")
     best = int(np.argmin(np.where(finite, final, np.inf)))
     theta = thetas[best]
     if np.hypot(theta[2], theta[3]) > np.hypot(theta[0], theta[1]):  # dominant term first
@@ -311,7 +309,7 @@ def fit_records(records: list[Record], key: str = "tensile") -> dict:
     cov = scale * np.linalg.inv(J.T @ J)
     cov = 0.5 * (cov + cov.T)
     if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(cov)) and np.all(np.diag(cov) >= 0)):
-        raise DataError(f"{key}.record", "the power-sum fit gave no finite parameters or covariance")
+        raise DataError("the power-sum fit gave no finite parameters or covariance", f"{key}.record")
     history = np.concatenate([h_lbfgs[best], h_lm[best]])
     history = np.minimum.accumulate(np.where(np.isfinite(history), history, np.inf))
     return {"theta": theta, "covariance": cov, "chi2": chi2, "dof": dof, "covariance_scale": scale,

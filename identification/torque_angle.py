@@ -336,7 +336,7 @@ class TorqueAngleFit:
 def _choice(section: dict, name: str, key: str, options: tuple[str, ...]) -> str:
     v = section.get(name, options[0])
     if v not in options:
-        raise DataError(f"{key}.{name}", f"must be one of {', '.join(map(repr, options))}, got {show(v)}")
+        raise DataError(f"must be one of {', '.join(map(repr, options))}, got {show(v)}", f"{key}.{name}")
     return v
 
 
@@ -347,13 +347,13 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     the folder its ``file`` is relative to.  Raises :class:`DataError` (one line) for bad data.
     """
     if not isinstance(section, dict):
-        raise DataError(key, "must be a table")
+        raise DataError("must be a table", key)
     unknown = [k for k in section if k not in KEYS]
     if unknown:
-        raise DataError(f"{key}.{unknown[0]}", f"unknown key (known: {', '.join(KEYS)})")
+        raise DataError(f"unknown key (known: {', '.join(KEYS)})", f"{key}.{unknown[0]}")
     fname = section.get("file")
     if not isinstance(fname, str) or not fname:
-        raise DataError(f"{key}.file", "missing (a CSV file with columns angle_deg, torque_Nm)")
+        raise DataError("missing (a CSV file with columns angle_deg, torque_Nm)", f"{key}.file")
     path = dataset_file(base, fname, f"{key}.file")
     torque_sign = _choice(section, "torque_sign", key, ("spring", "applied"))
     sense = _choice(section, "angle_sense", key, ("ccw", "cw"))
@@ -361,7 +361,7 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     offset = number(section, "angle_offset_deg", key, default=0.0)
     dcol = section.get("direction_column")
     if dcol is not None and (not isinstance(dcol, str) or not dcol):
-        raise DataError(f"{key}.direction_column", f"must be a column name, got {show(dcol)}")
+        raise DataError(f"must be a column name, got {show(dcol)}", f"{key}.direction_column")
     columns = ["angle_deg", "torque_Nm"] + ([dcol] if dcol else [])
     data = read_csv(path, columns, f"{key} ({fname})", min_rows=MIN_ROWS)
     s = 1.0 if sense == "ccw" else -1.0
@@ -369,15 +369,15 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     torque = data["torque_Nm"] if torque_sign == "spring" else -data["torque_Nm"]
     span = float(np.ptp(theta))
     if span < MIN_RANGE_DEG:
-        raise DataError(key, f"{fname}: the angle spans only {span:.3g} deg (< {MIN_RANGE_DEG:g}): "
-                        "spring_stiffness (k) is not identifiable; test over several degrees")
+        raise DataError(f"{fname}: the angle spans only {span:.3g} deg (< {MIN_RANGE_DEG:g}): "
+                        "spring_stiffness (k) is not identifiable; test over several degrees", key)
     skip = number(section, "reversal_skip_deg", key, default=DEFAULT_SKIP_SHARE * span)
     if skip < 0 or skip >= span / 2:
-        raise DataError(f"{key}.reversal_skip_deg", f"must be >= 0 and below half the angle range ({span / 2:.3g} deg)")
+        raise DataError(f"must be >= 0 and below half the angle range ({span / 2:.3g} deg)", f"{key}.reversal_skip_deg")
     if dcol:
         raw = data[dcol]
         if not np.all(np.isin(raw, (-1.0, 0.0, 1.0))):
-            raise DataError(f"{key}.direction_column", f"column {show(dcol)} must hold only -1, 0 or +1")
+            raise DataError(f"column {show(dcol)} must hold only -1, 0 or +1", f"{key}.direction_column")
         d = (s * raw).astype(int)
         used = d != 0
     else:
@@ -385,9 +385,9 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
         used = (d != 0) & (margin >= skip)
     for sign, name in ((1, "rising"), (-1, "falling")):
         if np.sum(used & (d == sign)) < MIN_BRANCH:
-            raise DataError(key, f"{fname}: fewer than {MIN_BRANCH} points with the angle {name} "
+            raise DataError(f"{fname}: fewer than {MIN_BRANCH} points with the angle {name} "
                             f"(after leaving out {skip:.3g} deg at each turning point): both loading and unloading "
-                            "branches are needed, or the friction band and spring_preload_deg are not identifiable")
+                            "branches are needed, or the friction band and spring_preload_deg are not identifiable", key)
     th, T, dd = theta[used], torque[used], d[used]
     lin = friction == "linear"
     theta_c = float(np.mean(th))
@@ -399,15 +399,15 @@ def fit_torque_angle(section: dict, base: pathlib.Path, key: str = "torque_angle
     if not (k > 0 and k > 3 * k_se):
         hint = (" (torque_Nm looks like the applied moment: set torque_sign = \"applied\")"
                 if k < -3 * k_se else "")
-        raise DataError(key, f"{fname}: spring_stiffness (k) not identifiable: fitted {k:.4g} ± {k_se:.2g} N m/rad"
-                        f"{hint}")
+        raise DataError(f"{fname}: spring_stiffness (k) not identifiable: fitted {k:.4g} ± {k_se:.2g} N m/rad"
+                        f"{hint}", key)
     if k_se > MAX_REL_SE_K * k:
-        raise DataError(key, f"{fname}: spring_stiffness (k) not identifiable: {k:.4g} ± {k_se:.2g} N m/rad over "
-                        f"{span:.3g} deg of angle; test over a wider angle range")
+        raise DataError(f"{fname}: spring_stiffness (k) not identifiable: {k:.4g} ± {k_se:.2g} N m/rad over "
+                        f"{span:.3g} deg of angle; test over a wider angle range", key)
     band, band_se = beta[2], se[2]
     if band < -3 * band_se:
-        raise DataError(key, f"{fname}: the loop runs the wrong way round (friction band {band:.3g} ± {band_se:.2g} "
-                        "N m < 0: friction would supply energy): check the time order of the rows or torque_sign")
+        raise DataError(f"{fname}: the loop runs the wrong way round (friction band {band:.3g} ± {band_se:.2g} "
+                        "N m < 0: friction would supply energy): check the time order of the rows or torque_sign", key)
     theta0_rad = math.radians(theta_c) + beta[0] / k
     # delta method: theta_0 = theta_c + b0 / (-b1)
     g = np.zeros_like(beta)

@@ -101,3 +101,30 @@ def test_effects_are_switched_in_the_assembly_only():
     fx = effects.effects_of(sc)
     assert fx is effects.effects_of(sc)
     assert {type(m).name for m in fx.listed} == set(sc.model.effects)
+
+
+def test_an_unlisted_effects_parameter_cannot_be_swept_or_fitted():
+    """The schema names each parameter's owning effect: moving a parameter whose effect the scene
+    does not list (a sweep axis, an optimisation variable, a fitted value) would change nothing,
+    so parameters.check refuses it, naming the effect; a listed one passes."""
+    import dataclasses
+
+    from beltjax import parameters
+    from beltjax.errors import BeltjaxError
+
+    sc = loads_scene(scene_text("two_pulley_T200.toml"))
+    assert "belt_damping" not in sc.model.effects
+    with pytest.raises(BeltjaxError, match=r'^belt\.CA: belongs to the effect "belt_damping"'):
+        parameters.check(sc, "belt.CA")
+    listed = dataclasses.replace(sc, model=dataclasses.replace(sc.model, effects=(*sc.model.effects, "belt_damping")))
+    assert parameters.check(listed, "belt.CA") == "belt.CA"
+    assert parameters.check(sc, "belt.EI") == "belt.EI"  # no owning effect
+
+
+def test_every_effect_owns_the_schema_fields_that_name_it():
+    from beltjax import schema
+    from beltjax.drive.effects import MODULES
+
+    owned = {k for m in MODULES.values() for k in m().parameters()}
+    assert owned == {k for k, f in schema.FIELDS.items() if f.effect}
+    assert all(f.effect in MODULES for f in schema.FIELDS.values() if f.effect)

@@ -148,6 +148,7 @@ def case(id, input, wrong, argv, *expect, how="main", compiles=False):
 
 
 T2 = str(T200_PATH)
+FEAD = (SCENES / "fead_8pulley.toml").read_text()
 TB = str(BENCH_PATH)
 CASES = [
     # ---------------------------------------------------------------- scene files (statics)
@@ -170,6 +171,16 @@ CASES = [
          lambda d: ["statics", scene(d, ("mass = 2.1543", "mass = true"))], "pulley[1].mass: expected a number"),
     case("scene-negative-mass", "`statics`: `mass = -2.1543`", "negative mass",
          lambda d: ["statics", scene(d, ("mass = 2.1543", "mass = -2.1543"))], "pulley[1].mass: must be >= 0"),
+    case("scene-zero-friction", "`statics`: `friction_coefficient = 0.0`", "a friction coefficient that is not positive",
+         lambda d: ["statics", scene(d, ("static_tension = 200.0", "static_tension = 200.0\nfriction_coefficient = 0.0"))],
+         "belt.friction_coefficient: must be > 0"),
+    case("scene-implausible-friction", "`statics`: `friction_coefficient = 12.0` on a pulley", "implausible friction",
+         lambda d: ["statics", scene(d, ("inertia = 1.7019e-3", "inertia = 1.7019e-3\nfriction_coefficient = 12.0"))],
+         "pulley[1].friction_coefficient: must lie in [0.001, 5]"),
+    case("statics-load-no-belt-carries", "`statics` of the eight-pulley drive with 15.5 N m on a back-side idler",
+         "a load no belt could carry",
+         lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[torque]]\npulley = "idler_top"\nmean_Nm = 15.5\n')],
+         "statics: pulley 'idler_top' would need a friction coefficient of 5.5", "no belt could"),
     case("scene-negative-tension", "`statics`: `static_tension = -200.0`", "negative tension",
          lambda d: ["statics", scene(d, ("static_tension = 200.0", "static_tension = -200.0"))],
          "belt.static_tension: must be > 0"),
@@ -390,6 +401,10 @@ CASES = [
     case("sweep-unknown-parameter", "`sweep`: `parameter = \"belt.EJ\"`", "no such parameter",
          lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('"belt.EI"', '"belt.EJ"')))],
          "grid[1].parameter: belt.EJ"),
+    case("sweep-unlisted-effect", "`sweep`: `parameter = \"belt.CA\"` without `belt_damping` in model.effects",
+         "a parameter that would change nothing",
+         lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ('"belt.EI"', '"belt.CA"')))],
+         'grid[1].parameter: belt.CA: belongs to the effect "belt_damping"'),
     case("sweep-negative-tension", "`sweep`: `values = [-200, 300]` for belt.static_tension", "negative tension",
          lambda d: ["sweep", T2, write(d, "sweep.toml", edit(SWEEP, ("[200, 300, 400, 500, 600]", "[-200, 300]")))],
          "grid[0].values: belt.static_tension must be > 0, got -200.0"),

@@ -125,7 +125,7 @@ def _energy_fn(scene, inst):
     transient's kinematic map: kinetic (bodies, and the spans' 1/2 int rhoA |r_t + c r_x|^2 dx
     with c the drive pulley's rim speed: a free drive pulley's belt travels with it), elastic
     energy of the spans (bars or ANCF), weight (with the potential of the constant moments that
-    take the spans' slides out of it, drive._belt_weight_slide_moments), tensioner spring."""
+    take the spans' slides out of it, drive.belt_weight_slide_moments), tensioner spring."""
     scene = drive.canonical(scene)
     n = drive.n_independent(scene)
     ns = drive.n_span_coordinates(scene)
@@ -148,7 +148,7 @@ def _energy_fn(scene, inst):
             V = sum(drive.span_potential(E[s], s, scene, inst) for s in range(E.shape[0]))
             if gravity:
                 phi, _ = drive.angles_and_arm(qi, scene, inst)
-                V = V - jnp.sum(drive._belt_weight_slide_moments(scene, inst, True) * phi)
+                V = V - jnp.sum(drive.belt_weight_slide_moments(scene, inst, True) * phi)
         else:
             V = sum(drive.span_potential(E[s], s, scene, inst) for s in range(E.shape[0]))
         if gravity:
@@ -1289,7 +1289,7 @@ def test_free_drive_at_rest_under_gravity_stays_at_rest(hybrid):
     4.37-4.38), which alone would move the spans' weight along their slopes (0.15 N along
     the belt here: a static residual of 0.015 N m on the crank's rotation, and the crank
     turning 0.06 deg in 50 ms); drive.body_forces counts the weight with the slides taken
-    back (_belt_weight_slide_moments), so neither happens.
+    back (belt_weight_slide_moments), so neither happens.
     """
     sc = drive.canonical(hybrid["rest_scene"])
     st = hybrid["modes"].statics

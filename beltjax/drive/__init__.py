@@ -41,9 +41,10 @@ Units: SI throughout (m, rad, N, N m, kg, kg m^2, s).
 
 from beltjax.drive.topology import GRAVITY, Installation, belt_speed, body_names, canonical, drive_pulley, element_length, flexible, is_free, n_full, n_independent, n_rigid, n_span_coordinates, section, span_elements, span_names, static_dofs, travel_coordinate, travel_follows_drive  # noqa: F401
 from beltjax.drive.kinematics import _body_coordinates, _centers, _moved_tangents, _rim_slides, _span_ends, _split, angles_and_arm, belt_travel, full_coordinates, installed_coordinates, n_reaction_points, span_lengths, span_lengths_and_jacobian, split_full  # noqa: F401
-from beltjax.drive.effects import MODULES as EFFECT_MODULES, Effect, Effects, effects_of, span_dissipation  # noqa: F401
-from beltjax.drive.forces import bar_axial_force, _belt_weight_slide_moments, span_potential, _window, body_forces, body_masses, full_forces, full_mass_matrix, span_forces, span_load_force, spring_moment, torque  # noqa: F401
-from beltjax.drive.equations import ReducedMass, TravelInertia, UNROLLED_SOLVE_MAX, _bar_accelerations, bar_accelerations, schur_accelerations, _full_motion, _rim_transport_speed, _small_matmul_tn, _small_spd_solve, _travel_gain, _travel_rates, full_motion, reduced_accelerations, reduced_mass, reduced_system, span_coordinate_index, span_transport_matrices, static_residual, transient_transport_speed, transport_speed, travel_inertia, with_travel_inertia  # noqa: F401
+from beltjax.drive.effects import MODULES as EFFECT_MODULES, Effect, Effects, belt_weight_slide_moments, effects_of, span_dissipation  # noqa: F401
+from beltjax.drive.forces import bar_axial_force, has_mean_loads, mean_body_loads, span_potential, _window, body_forces, body_masses, full_forces, full_mass_matrix, span_forces, span_load_force, spring_moment, torque  # noqa: F401
+from beltjax.drive.equations import ReducedMass, TravelInertia, UNROLLED_SOLVE_MAX, _bar_accelerations, bar_accelerations, schur_accelerations, _full_motion, _rim_transport_speed, _small_matmul_tn, _small_spd_solve, _travel_gain, _travel_rates, full_motion, reduced_accelerations, reduced_mass, reduced_system, span_coordinate_index, span_transport_matrices, static_residual, steady_forces, drive_torque, transient_transport_speed, transport_speed, travel_inertia, with_travel_inertia  # noqa: F401
 from beltjax.drive.spans import AncfSpans, BarSpans, SpanModel, bar_energy, spans_of  # noqa: F401
 from beltjax.drive.layouts import FixedCentres, Layout, TensionerArm, layout_of  # noqa: F401
+from beltjax.drive.assembly import Drive, drive_of  # noqa: F401
 from beltjax.drive.outputs import full_span_lengths, hub_forces, span_tension_profile, span_tensions  # noqa: F401

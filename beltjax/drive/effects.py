@@ -1,11 +1,12 @@
 """The effects a scene may list, each one module, and their assembly.
 
-Each effect is an :class:`Effect` (an equinox module) that says which scene parameters it owns
-and contributes through one small interface: a span's potential (J), a span's generalised
-forces (N), the bodies' forces (N, N m), the drive pulley's angle (rad).  (Unbalance and the
-bodies' weights are still applied where the kinematics and the body forces need the
-installation; they ask the assembly whether the effect is listed.)  An effect that is not listed is not in the assembly and adds nothing (not even
-a zero) to any traced program: :func:`effects_of` is the one place where the names in
+Each effect is an :class:`Effect` (an equinox module).  The parameters it owns are the schema's
+fields that name it (:data:`beltjax.schema.FIELDS`, a field's ``effect``: the one list that also
+serves scene parsing, parameter paths and sweep and optimisation bounds).  It contributes through
+one small interface: a span's potential (J), a span's generalised forces (N), the bodies' forces
+(N, N m) in transients and in steady states, the bodies' positions (m), the drive pulley's
+angle (rad).  An effect that is not listed is not in the assembly and adds nothing (not even a
+zero) to any traced program: :func:`effects_of` is the one place where the names in
 ``model.effects`` are switched, and the one place that maps a name to a module.
 
 Effects (units of the parameters they own):
@@ -29,8 +30,9 @@ from typing import ClassVar
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-from beltjax import ancf, span
+from beltjax import ancf, schema, span
 from beltjax.scene.spec import EFFECTS, TENSIONER, Scene
 
 
@@ -41,9 +43,27 @@ class Effect(eqx.Module):
     #: whether its span forces dissipate (left out of the conservative statics and modal forces)
     dissipative: ClassVar[bool] = False
 
+    def parameters(self) -> list[str]:
+        """The schema keys this effect owns (``beltjax.schema.FIELDS``: a field's ``effect``)."""
+        return [k for k, f in schema.FIELDS.items() if f.effect == self.name]
+
     def given(self, scene: Scene) -> list[str]:
-        """Keys of this effect's parameters that ``scene`` gives a non-zero value."""
-        return []
+        """Scene keys of this effect's parameters that ``scene`` gives a non-zero value
+        (``belt.CA``, ``pulley[1].cm_offset``, ``tensioner.damping``)."""
+        out = []
+        for key in self.parameters():
+            group, attr = key.split(".")
+            if group == "belt":
+                owners = [("belt", scene.belt)]
+            elif group == "pulley":
+                owners = [(f"pulley[{i}]", p) for i, p in enumerate(scene.pulleys)]
+            else:
+                owners = [(group, getattr(scene, group))] if getattr(scene, group) is not None else []
+            for prefix, obj in owners:
+                v = getattr(obj, attr)
+                if v is not None and float(np.max(np.abs(np.asarray(v)))) > 0:
+                    out.append(f"{prefix}.{attr}")
+        return out
 
     def span_potential(self, e, rhoA, Le, idx):
         """Potential of one ANCF span (J), or None."""
@@ -56,6 +76,17 @@ class Effect(eqx.Module):
     def body_forces(self, f, bodies, bodies_dot, scene: Scene, t):
         """``f`` (nb, 3; N, N m) plus this effect's forces on the bodies in a transient."""
         return f
+
+    def steady_body_forces(self, f, masses, scene: Scene, inst, transient: bool):
+        """``f`` (nb, 3; N, N m) plus this effect's conservative forces on the bodies (statics,
+        modes and transients); masses (nb, 3): the bodies' (m, m, J) (kg, kg m^2); inst: the
+        installation or None."""
+        return f
+
+    def body_positions(self, pos, angle, scene: Scene, inst):
+        """The route entries' body positions (n, 2) m given their centres ``pos`` and angles
+        ``angle`` (n,) rad."""
+        return pos
 
     def drive_angle(self, angle, pulley, t):
         """The drive pulley's angle (rad) at time t (s) with this effect."""
@@ -71,16 +102,54 @@ class Transport(Effect):
         return span.span_inertial_forces(e, e_dot, c, c_dot, belt.rhoA, Le, idx)
 
 
+GRAVITY = (0.0, -9.81)  # m/s^2
+
+
 class Gravity(Effect):
-    """The weight of belt, pulleys and tensioner (the bodies' weights are applied by the drive's
-    body forces, which need the installation's wrapped-belt masses)."""
+    """The weight of belt, pulleys (with their wrapped belt) and tensioner, g = 9.81 m/s^2 along -y."""
 
     name: ClassVar[str] = "gravity"
 
     def span_potential(self, e, rhoA, Le, idx):
-        from beltjax.drive.topology import GRAVITY
-
         return jnp.sum(jax.vmap(ancf.gravity_energy, in_axes=(0, None, None, None))(e[idx], rhoA, Le, GRAVITY))
+
+    def steady_body_forces(self, f, masses, scene, inst, transient):
+        from beltjax.drive.assembly import drive_of
+
+        f = f.at[:, 1].add(GRAVITY[1] * masses[:, 0])
+        if inst is not None and drive_of(scene).spans.massive:  # the belt's weight on its spans
+            f = f.at[: len(scene.route.order), 2].add(belt_weight_slide_moments(scene, inst, transient))
+        return f
+
+
+def belt_weight_slide_moments(scene: Scene, inst, transient: bool = False):
+    """Moments (N m) on the pulleys that make a rigid turn of the belt loop cost no weight.
+
+    A pulley's rotation perturbation slides the span end nodes along their spans (s R phi);
+    the belt itself flows through the spans, so sliding a span along its own line must not
+    move its weight.  The span's weight is counted with its nodes shifted back by the
+    interpolated end slides, (1 - x) s0 + x s1 along the span: that adds the potential
+    rhoA (g . t) L0 (s0 + s1) / 2 per span, i.e. these constant moments (a pure moment: the
+    bearing forces are unchanged).  In a transient whose belt travels with a free drive
+    pulley (``travel_follows_drive``) the slides are taken relative to that travel,
+    s R phi - s_d R_d phi_d, which adds to the drive pulley's moment minus s_d R_d times the
+    others' sum of m_i / (s_i R_i): a rigid turn of the loop, which then moves no node, does no
+    work either.
+    """
+    from beltjax.drive.assembly import drive_of
+
+    n = len(scene.route.order)
+    g = jnp.asarray(GRAVITY)
+    L0 = inst.span_length / inst.stretch  # unstretched span lengths (m)
+    senses = jnp.asarray(scene.route.senses, dtype=L0.dtype)
+    w = scene.belt.rhoA * (inst.span_tangent @ g) * L0 / 2  # per span, N
+    prev = (np.arange(n) - 1) % n
+    m = -(w + w[prev]) * senses * inst.radii
+    d = drive_of(scene)
+    if transient and d.travel_follows_drive:
+        k = d.drive_pulley
+        m = m.at[k].add(-senses[k] * inst.radii[k] * jnp.sum(m / (senses * inst.radii)))
+    return m
 
 
 def _element_dissipation(e, e_dot, CA, L):
@@ -104,8 +173,6 @@ class BeltDamping(Effect):
     name: ClassVar[str] = "belt_damping"
     dissipative: ClassVar[bool] = True
 
-    def given(self, scene):
-        return ["belt.CA"] if float(scene.belt.CA) > 0 else []
 
     def span_forces(self, e, e_dot, c, c_dot, belt, Le, idx):
         return -jax.grad(span_dissipation, argnums=1)(e, e_dot, belt.CA, Le, idx)
@@ -116,8 +183,6 @@ class BearingDamping(Effect):
 
     name: ClassVar[str] = "bearing_damping"
 
-    def given(self, scene):
-        return [f"pulley[{i}].bearing_damping" for i, p in enumerate(scene.pulleys) if float(p.bearing_damping) > 0]
 
     def body_forces(self, f, bodies, bodies_dot, scene, t):
         for i, name in enumerate(scene.route.order):
@@ -131,8 +196,6 @@ class TensionerDamping(Effect):
 
     name: ClassVar[str] = "tensioner_damping"
 
-    def given(self, scene):
-        return ["tensioner.damping"] if scene.tensioner is not None and float(scene.tensioner.damping) > 0 else []
 
     def body_forces(self, f, bodies, bodies_dot, scene, t):
         if scene.tensioner is None:
@@ -141,13 +204,24 @@ class TensionerDamping(Effect):
 
 
 class Unbalance(Effect):
-    """Pulley centres of mass off the axis by cm_offset (m, in the pulley's frame)."""
+    """Pulley centres of mass off the axis by cm_offset (m, in the pulley's frame): a pulley's
+    body position is the centre of mass of the pulley and its wrapped belt (on the axis)."""
 
     name: ClassVar[str] = "unbalance"
 
-    def given(self, scene):
-        return [f"pulley[{i}].cm_offset" for i, p in enumerate(scene.pulleys)
-                if float(jnp.linalg.norm(p.cm_offset)) > 0]
+
+    def body_positions(self, pos, angle, scene, inst):
+        m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch  # wrapped belt (kg)
+        out = []
+        for i, name in enumerate(scene.route.order):
+            if name == TENSIONER:
+                out.append(pos[i])
+                continue
+            p = scene.pulley(name)
+            e = p.cm_offset * p.mass / (p.mass + m_arc[i])
+            c, sn = jnp.cos(angle[i]), jnp.sin(angle[i])
+            out.append(pos[i] + jnp.stack([c * e[0] - sn * e[1], sn * e[0] + c * e[1]]))
+        return jnp.stack(out)
 
 
 class SpeedFluctuation(Effect):
@@ -155,9 +229,6 @@ class SpeedFluctuation(Effect):
 
     name: ClassVar[str] = "speed_fluctuation"
 
-    def given(self, scene):
-        return [f"pulley[{i}].fluctuation_amplitude_deg" for i, p in enumerate(scene.pulleys)
-                if float(p.fluctuation_amplitude_deg) > 0]
 
     def drive_angle(self, angle, pulley, t):
         A = jnp.deg2rad(pulley.fluctuation_amplitude_deg)
@@ -211,6 +282,18 @@ class Effects(eqx.Module):
         for x in self.listed:
             f = x.body_forces(f, bodies, bodies_dot, scene, t)
         return f
+
+    def steady_body_forces(self, f, masses, scene, inst, transient: bool):
+        """``f`` plus the listed effects' conservative forces on the bodies (N, N m)."""
+        for x in self.listed:
+            f = x.steady_body_forces(f, masses, scene, inst, transient)
+        return f
+
+    def body_positions(self, pos, angle, scene, inst):
+        """The route entries' body positions (n, 2) m with the listed effects."""
+        for x in self.listed:
+            pos = x.body_positions(pos, angle, scene, inst)
+        return pos
 
     def drive_angle(self, angle, pulley, t):
         """The drive pulley's angle (rad) at time t with the listed effects."""

@@ -16,7 +16,7 @@ from beltjax.drive.topology import Installation, drive_pulley, element_length, n
 from beltjax.drive.spans import spans_of
 from beltjax.drive.effects import effects_of
 from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, full_coordinates, span_lengths_and_jacobian, split_full
-from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix
+from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix, mean_body_loads
 
 
 def transport_speed(scene: Scene, inst: Installation, speed):
@@ -361,13 +361,38 @@ def _travel_rates(scene: Scene, t):
     return x, v, a
 
 
-def static_residual(qi, scene: Scene, inst: Installation, speed=0.0):
-    """Static (steady-motion) residual F_ii(q_i, 0) (N, N m); zero at equilibrium."""
+def steady_forces(q, scene: Scene, inst: Installation, speed=0.0, loaded: bool = False):
+    """Forces on the full coordinates (N, N m) in the steady motion at belt speed ``speed`` (m/s):
+    the conservative ones of :func:`full_forces`, and with ``loaded`` the operating point's mean
+    loads (:func:`beltjax.drive.forces.mean_body_loads`)."""
+    F = full_forces(q, jnp.zeros_like(q), scene, inst, transport_speed(scene, inst, speed))
+    if loaded:
+        F = F.at[n_span_coordinates(scene):].add(mean_body_loads(scene, inst, speed).reshape(-1))
+    return F
+
+
+def static_residual(qi, scene: Scene, inst: Installation, speed=0.0, loaded: bool = False):
+    """Static (steady-motion) residual F_ii(q_i, 0) (N, N m); zero at equilibrium.  With
+    ``loaded`` the mean loads act (the operating point), else none (the unloaded state)."""
     phi = lambda x: full_coordinates(x, scene, inst)  # noqa: E731
     q, vjp = jax.vjp(phi, qi)
-    c = transport_speed(scene, inst, speed)
-    F = full_forces(q, jnp.zeros_like(q), scene, inst, c)
-    return vjp(F)[0]
+    return vjp(steady_forces(q, scene, inst, speed, loaded))[0]
+
+
+def drive_torque(qi, scene: Scene, inst: Installation, speed=0.0, loaded: bool = False):
+    """Torque (N m, CCW positive) that the drive pulley's shaft applies in the steady motion at
+    belt speed ``speed`` (m/s): minus the generalised force of the belt (and, with ``loaded``,
+    of the pulley's own mean loads) on the drive pulley's angle, which statics holds."""
+    d = drive_pulley(scene)
+    n = len(scene.route.order)
+    t_qi, t_drv = jnp.zeros_like(qi), jnp.zeros(n, dtype=qi.dtype)
+    if travel_follows_drive(scene):  # a free drive pulley: its angle is a coordinate of q_i
+        t_qi = t_qi.at[travel_coordinate(scene)].set(1.0)
+    else:
+        t_drv = t_drv.at[d].set(1.0)
+    q, dq = jax.jvp(lambda x, a: full_coordinates(x, scene, inst, driven_angle=a), (qi, jnp.zeros(n, dtype=qi.dtype)),
+                    (t_qi, t_drv))
+    return -(dq @ steady_forces(q, scene, inst, speed, loaded))
 
 
 _bar_accelerations = bar_accelerations  # the name tests and benchmarks used

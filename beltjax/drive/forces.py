@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from beltjax.scene import ARM, TENSIONER, Scene
-from beltjax.drive.topology import GRAVITY, Installation, drive_pulley, element_length, span_names, travel_follows_drive
+from beltjax.drive.topology import Installation, body_names, element_length, span_names
 from beltjax.drive.effects import effects_of
 from beltjax.drive.layouts import layout_of, spring_moment  # noqa: F401
 from beltjax.drive.spans import bar_axial_force as _bar_axial_force, spans_of
@@ -80,10 +79,7 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     """
     f = layout_of(scene).body_forces(jnp.zeros_like(bodies), bodies, scene)
     fx = effects_of(scene)
-    if "gravity" in fx:
-        f = f.at[:, 1].add(GRAVITY[1] * body_masses(scene, inst).reshape(-1, 3)[:, 0])
-        if inst is not None and spans_of(scene).massive:  # the belt's weight on its spans
-            f = f.at[: len(scene.route.order), 2].add(_belt_weight_slide_moments(scene, inst, t is not None))
+    f = fx.steady_body_forces(f, body_masses(scene, inst).reshape(-1, 3), scene, inst, t is not None)  # weights
     if t is None:
         return f
     order = scene.route.order
@@ -94,31 +90,31 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     return f
 
 
-def _belt_weight_slide_moments(scene: Scene, inst: Installation, transient: bool = False):
-    """Moments (N m) on the pulleys that make a rigid turn of the belt loop cost no weight.
+def mean_body_loads(scene: Scene, inst: Installation, speed=0.0):
+    """The steady loads of the operating point on the bodies, (nb, 3) (N, N, N m).
 
-    A pulley's rotation perturbation slides the span end nodes along their spans (s R phi);
-    the belt itself flows through the spans, so sliding a span along its own line must not
-    move its weight.  The span's weight is counted with its nodes shifted back by the
-    interpolated end slides, (1 - x) s0 + x s1 along the span: that adds the potential
-    rhoA (g . t) L0 (s0 + s1) / 2 per span, i.e. these constant moments (a pure moment: the
-    bearing forces are unchanged).  In a transient whose belt travels with a free drive
-    pulley (:func:`travel_follows_drive`) the slides are taken relative to that travel,
-    s R phi - s_d R_d phi_d, which adds to the drive pulley's moment minus s_d R_d times the
-    others' sum of m_i / (s_i R_i): a rigid turn of the loop, which then moves no node, does no
-    work either.
+    Each lasting [[torque]] load's mean_Nm (one without ``t_end_s``: a pulse that ends is no
+    part of the steady state; the harmonic part averages out), and the listed effects' body
+    forces at the steady motion of belt speed ``speed`` (m/s): every pulley turning at its
+    rolling speed s v / R (rad/s), the arm at rest (bearing damping: a drag -c_b s v / R).
     """
-    n = len(scene.route.order)
-    g = jnp.asarray(GRAVITY)
-    L0 = element_length(scene, inst) * spans_of(scene).elements
-    senses = jnp.asarray(scene.route.senses, dtype=L0.dtype)
-    w = scene.belt.rhoA * (inst.span_tangent @ g) * L0 / 2  # per span, N
-    prev = (np.arange(n) - 1) % n
-    m = -(w + w[prev]) * senses * inst.radii
-    if transient and travel_follows_drive(scene):
-        d = drive_pulley(scene)
-        m = m.at[d].add(-senses[d] * inst.radii[d] * jnp.sum(m / (senses * inst.radii)))
-    return m
+    order = scene.route.order
+    nb = len(body_names(scene))
+    f = jnp.zeros((nb, 3), dtype=inst.radii.dtype)
+    for load in scene.torques:
+        if load.t_end_s is None:
+            f = f.at[-1 if load.pulley == ARM else order.index(load.pulley), 2].add(load.mean_Nm)
+    senses = jnp.asarray(scene.route.senses, dtype=f.dtype)
+    rates = jnp.zeros_like(f).at[: len(order), 2].set(senses * speed / inst.radii)
+    return effects_of(scene).body_forces(f, None, rates, scene, None)
+
+
+def has_mean_loads(scene: Scene) -> bool:
+    """Whether the scene's operating point differs from its unloaded state: a lasting [[torque]]
+    with a mean, or listed bearing damping."""
+    lasting = any(load.t_end_s is None and float(load.mean_Nm) != 0.0 for load in scene.torques)
+    drag = "bearing_damping" in effects_of(scene) and any(float(p.bearing_damping) > 0 for p in scene.pulleys)
+    return lasting or drag
 
 
 def _window(t, t_start, t_end):

@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax.scene import TENSIONER, Scene
+from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, drive_pulley, is_free, n_rigid, n_span_coordinates, travel_follows_drive
 from beltjax.drive.layouts import layout_of
 from beltjax.drive.spans import spans_of
@@ -135,21 +135,10 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0
 def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=None, shift=None):
     """(x, y, angle) of every body, flattened (m, rad): pulleys in route order, then the arm
     (see :func:`full_coordinates`)."""
-    order = scene.route.order
     senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
     angle = phi if t is None else phi + senses * belt_travel(scene, t) / inst.radii
-    unbalance = "unbalance" in effects_of(scene)
-    bodies = []
-    if unbalance:  # the body (x, y) is the centre of mass of pulley + wrapped belt
-        m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
-    for i in range(len(order)):
-        pos = centers[i]
-        if unbalance and order[i] != TENSIONER:
-            p = scene.pulley(order[i])
-            e = p.cm_offset * p.mass / (p.mass + m_arc[i])
-            c, sn = jnp.cos(angle[i]), jnp.sin(angle[i])
-            pos = pos + jnp.stack([c * e[0] - sn * e[1], sn * e[0] + c * e[1]])
-        bodies.append(jnp.concatenate([pos, angle[i][None]]))
+    pos = effects_of(scene).body_positions(centers, angle, scene, inst)  # unbalance: centres of mass
+    bodies = [jnp.concatenate([pos[i], angle[i][None]]) for i in range(len(scene.route.order))]
     return jnp.concatenate(bodies + layout_of(scene).bodies(theta, scene, shift))
 
 

@@ -11,12 +11,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax.ancf import Section
-from beltjax.scene import TENSIONER, Scene
-from beltjax.drive.layouts import layout_of
-from beltjax.drive.spans import spans_of
-
-
-GRAVITY = (0.0, -9.81)  # m/s^2
+from beltjax.scene import Scene
+from beltjax.drive.assembly import Drive, drive_of  # noqa: F401
+from beltjax.drive.effects import GRAVITY  # noqa: F401  (m/s^2)
 
 
 class Installation(NamedTuple):
@@ -56,45 +53,45 @@ def span_names(scene: Scene) -> list[str]:
 
 def is_free(scene: Scene) -> list[bool]:
     """Per route entry: whether its rotation is an independent coordinate (not driven)."""
-    return [True if name == TENSIONER else not scene.pulley(name).driven for name in scene.route.order]
+    return list(drive_of(scene).free)
 
 
 def flexible(scene: Scene) -> bool:
     """True for the hybrid ANCF fidelity (span nodes with mass); False for the rotational
-    (Newton-Euler) one, whose spans are massless axial bars (:func:`beltjax.drive.spans.spans_of`)."""
-    return spans_of(scene).massive
+    (Newton-Euler) one, whose spans are massless axial bars (:mod:`beltjax.drive.spans`)."""
+    return drive_of(scene).spans.massive
 
 
 def span_elements(scene: Scene) -> int:
     """Elements per span in the full coordinates: the mesh (ancf) or 1 (rotational: a bar)."""
-    return spans_of(scene).elements
+    return drive_of(scene).spans.elements
 
 
 def n_rigid(scene: Scene) -> int:
     """Number of independent rigid-body coordinates (free pulley angles, then the layout's:
     the arm angle of a tensioner)."""
-    return sum(is_free(scene)) + layout_of(scene).coordinates
+    return drive_of(scene).n_rigid
 
 
 def n_independent(scene: Scene) -> int:
     """Number of independent coordinates of the drive."""
-    return n_rigid(scene) + spans_of(scene).independent * len(scene.route.order)
+    return drive_of(scene).n_independent
 
 
 def n_span_coordinates(scene: Scene) -> int:
     """Number of span coordinates at the head of the full vector (4 (N+1) per span)."""
-    return len(scene.route.order) * 4 * (span_elements(scene) + 1)
+    return drive_of(scene).n_span_coordinates
 
 
 def n_full(scene: Scene) -> int:
     """Number of full coordinates (spans, then 3 per body)."""
-    return n_span_coordinates(scene) + 3 * len(body_names(scene))
+    return drive_of(scene).n_full
 
 
 def body_names(scene: Scene) -> list[str]:
     """Rigid bodies in the order of the full coordinates: route entries, then the layout's
     ("tensioner arm")."""
-    return list(scene.route.order) + list(layout_of(scene).body_names)
+    return drive_of(scene).body_names
 
 
 def static_dofs(scene: Scene) -> np.ndarray:
@@ -103,12 +100,7 @@ def static_dofs(scene: Scene) -> np.ndarray:
     A drive whose pulleys are all free turns as a rigid body at no cost (zero
     stiffness); statics holds the drive pulley (its reaction is the drive torque).
     """
-    k = drive_pulley(scene)
-    free = is_free(scene)
-    dofs = np.arange(n_independent(scene))
-    if free[k]:
-        return np.delete(dofs, sum(free[:k]))
-    return dofs
+    return drive_of(scene).static_dofs
 
 
 def travel_follows_drive(scene: Scene) -> bool:
@@ -120,13 +112,12 @@ def travel_follows_drive(scene: Scene) -> bool:
     c = s R theta_d' / lam, and every span end slides by its pulley's rim travel less x
     (:func:`full_coordinates`); otherwise x = x_b(t) is prescribed.
     """
-    return is_free(scene)[drive_pulley(scene)]
+    return drive_of(scene).travel_follows_drive
 
 
 def travel_coordinate(scene: Scene) -> int:
     """Position in q_i of the drive pulley's angle when it is free (:func:`travel_follows_drive`)."""
-    d = drive_pulley(scene)
-    return sum(is_free(scene)[:d])
+    return drive_of(scene).travel_coordinate
 
 
 def drive_pulley(scene: Scene) -> int:
@@ -135,10 +126,7 @@ def drive_pulley(scene: Scene) -> int:
     The driven pulley (the first one in the file if several), else the first
     pulley of the file.
     """
-    order = scene.route.order
-    driven = [p.name for p in scene.pulleys if p.driven and p.name in order]
-    name = driven[0] if driven else next(p.name for p in scene.pulleys if p.name in order)
-    return order.index(name)
+    return drive_of(scene).drive_pulley
 
 
 def belt_speed(scene: Scene, rpm=None):

@@ -15,7 +15,7 @@ from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initi
 
 
 def _fail(key, msg, source=""):
-    raise SceneError(f"{key}: {msg}", key, source)
+    raise SceneError(msg, key, source=source)
 
 
 def _table(data, key: str, source: str, allowed: tuple[str, ...]) -> tomltable.Table:
@@ -38,7 +38,7 @@ _TOP_KEYS = (
 )
 
 
-_BELT_KEYS = ("EA", "EI", "rhoA", "static_tension", "length", "CA")
+_BELT_KEYS = ("EA", "EI", "rhoA", "static_tension", "length", "CA", "friction_coefficient", "groove_angle_deg")
 
 
 _PULLEY_KEYS = (
@@ -55,6 +55,7 @@ _PULLEY_KEYS = (
     "cm_offset",
     "bearing_damping",
     "target_speed_rpm",
+    "friction_coefficient",
 )
 
 
@@ -115,7 +116,10 @@ def _parse_belt(data, source) -> Belt:
     T = _num(t, "static_tension", "belt", required=False)
     L = _num(t, "length", "belt", required=False)
     CA = _num(t, "CA", "belt", required=False, default=0.0)
-    return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA))
+    mu = _num(t, "friction_coefficient", "belt", required=False)
+    groove = _num(t, "groove_angle_deg", "belt", required=False)
+    return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA),
+                friction_coefficient=_arr(mu), groove_angle_deg=_arr(groove))
 
 
 def _parse_pulley(data, i, source) -> Pulley:
@@ -142,6 +146,7 @@ def _parse_pulley(data, i, source) -> Pulley:
     if math.hypot(*cm) >= radius:
         t.fail("cm_offset", f"offset {math.hypot(*cm)!r} m must be smaller than the radius {radius!r} m")
     bd = _num(t, "bearing_damping", "pulley", required=False, default=0.0)
+    mu = _num(t, "friction_coefficient", "pulley", required=False)
     target = _num(t, "target_speed_rpm", "pulley", required=False)
     if target is not None:
         if accel == 0.0:
@@ -167,6 +172,7 @@ def _parse_pulley(data, i, source) -> Pulley:
         cm_offset=_arr(cm),
         bearing_damping=_arr(bd),
         target_speed_rpm=_arr(target),
+        friction_coefficient=_arr(mu),
     )
 
 

@@ -47,9 +47,8 @@ ARM = "tensioner_arm"  # a [[torque]] on the tensioner's arm (about its pivot)
 class SceneError(BeltjaxError):
     """Invalid scene: one-line message starting with the key path (``key`` attribute)."""
 
-    def __init__(self, message: str, key: str = "", source: str = ""):
-        super().__init__(message)
-        self.key = key
+    def __init__(self, message: str = "", key: str = "", *, source: str = ""):
+        super().__init__(message, key)
         self.source = source
 
 
@@ -58,6 +57,9 @@ class Belt(eqx.Module):
 
     EA (N), EI (N m^2), rhoA (kg/m), CA (N s); exactly one of static_tension (N)
     and length (unstretched belt length, m) is an array, the other None.
+    friction_coefficient (-): belt on pulley, or None (slip margins not assessed);
+    groove_angle_deg (deg): a V or ribbed belt's groove angle (its wedge raises the friction
+    of the pulleys it wraps with its ribs to mu / sin(angle / 2)), or None (a flat belt).
     """
 
     EA: jax.Array
@@ -66,6 +68,8 @@ class Belt(eqx.Module):
     static_tension: jax.Array | None
     length: jax.Array | None
     CA: jax.Array
+    friction_coefficient: jax.Array | None = None
+    groove_angle_deg: jax.Array | None = None
 
 
 class Pulley(eqx.Module):
@@ -74,7 +78,8 @@ class Pulley(eqx.Module):
     center (2,) m, radius m, mass kg, inertia kg m^2, speed_rpm rpm,
     acceleration_rpm_per_s rpm/s, fluctuation_amplitude_deg deg,
     fluctuation_frequency_hz Hz, cm_offset (2,) m, bearing_damping N m s/rad,
-    target_speed_rpm rpm (the run-up's end speed) or None.
+    target_speed_rpm rpm (the run-up's end speed) or None; friction_coefficient (-) of the
+    belt on this pulley, or None (the belt's).
     """
 
     name: str = eqx.field(static=True)
@@ -90,6 +95,7 @@ class Pulley(eqx.Module):
     cm_offset: jax.Array
     bearing_damping: jax.Array
     target_speed_rpm: jax.Array | None = None
+    friction_coefficient: jax.Array | None = None
 
 
 class Tensioner(eqx.Module):

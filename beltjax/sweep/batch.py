@@ -156,7 +156,7 @@ def _devices(devices="auto") -> tuple | None:
         return None
     if isinstance(devices, str):
         if devices != "auto":
-            raise SweepError("devices", f"\"auto\", None or a sequence of JAX devices, got {devices!r}")
+            raise SweepError(f"\"auto\", None or a sequence of JAX devices, got {devices!r}", "devices")
         devs = jax.local_devices()
         return tuple(devs) if len(devs) > 1 and devs[0].platform != "cpu" else None
     devs = tuple(devices)
@@ -261,27 +261,27 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     bad = [o for o in outputs if o not in OUTPUTS]
     outputs = tuple(o for o in OUTPUTS if o in outputs)
     if bad or not outputs:
-        raise SweepError("outputs", f"choose from {', '.join(OUTPUTS)}")
+        raise SweepError(f"choose from {', '.join(OUTPUTS)}", "outputs")
     if backend not in ("local", "dask"):
-        raise SweepError("backend", f"must be \"local\" or \"dask\", got {backend!r}")
+        raise SweepError(f"must be \"local\" or \"dask\", got {backend!r}", "backend")
     values = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in values.items()}
     if not values:
-        raise SweepError("values", "no parameters given")
+        raise SweepError("no parameters given", "values")
     lengths = {len(v) for v in values.values()}
     if len(lengths) != 1 or 0 in lengths:
-        raise SweepError("values", f"every parameter needs the same, non-zero number of values, got {sorted(lengths)}")
+        raise SweepError(f"every parameter needs the same, non-zero number of values, got {sorted(lengths)}", "values")
     for k in values:
         try:
             parameters.check(scene, k)
         except parameters.ParameterError as exc:
-            raise SweepError("values", str(exc)) from None
+            raise SweepError(str(exc), "values") from None
     n = lengths.pop()
     if n > MAX_CASES:
-        raise SweepError("values", f"{n} cases, more than the limit {MAX_CASES}")
+        raise SweepError(f"{n} cases, more than the limit {MAX_CASES}", "values")
     scene = drive.canonical(scene)
     rpm = np.zeros(0) if "campbell" not in outputs else np.asarray(rpm, dtype=float).reshape(-1)
     if "campbell" in outputs and rpm.size == 0:
-        raise SweepError("rpm", "the campbell output needs drive-pulley speeds (rpm)")
+        raise SweepError("the campbell output needs drive-pulley speeds (rpm)", "rpm")
     modes = max(1, min(int(modes), drive.n_independent(scene)))
     dp = scene.route.order[drive.drive_pulley(scene)]
     moving = float(drive.belt_speed(scene)) != 0.0 or f"pulley.{dp}.speed_rpm" in values

@@ -36,7 +36,7 @@ def _dask_client(address):
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
-        raise SweepError("backend", "the dask backend needs dask.distributed: pip install 'beltjax[dask]'") from None
+        raise SweepError("the dask backend needs dask.distributed: pip install 'beltjax[dask]'", "backend") from None
     if address is not None and not isinstance(address, str):
         return address, False
     address = address or os.environ.get("BELTJAX_DASK_SCHEDULER") or None
@@ -44,7 +44,7 @@ def _dask_client(address):
         try:
             return Client(address, timeout="20s"), True
         except OSError as exc:
-            raise SweepError("dask_scheduler", f"cannot reach the Dask scheduler {address!r}: {exc}") from None
+            raise SweepError(f"cannot reach the Dask scheduler {address!r}: {exc}", "dask_scheduler") from None
     cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
                            dashboard_address=None)
     return Client(cluster), True
@@ -82,4 +82,4 @@ def _dask_client_check() -> None:
     try:
         import dask.distributed  # noqa: F401
     except ImportError:
-        raise SweepError("backend", "the dask backend needs dask.distributed: pip install 'beltjax[dask]'") from None
+        raise SweepError("the dask backend needs dask.distributed: pip install 'beltjax[dask]'", "backend") from None

@@ -69,8 +69,6 @@ _RANDOM_KEYS = ("parameter", "distribution", "mean", "nominal", "std", "low", "h
 class SweepError(BeltjaxError):
     """A bad sweep file or request: one line starting with the key (``key`` attribute)."""
 
-    def __init__(self, key: str, message: str):
-        super().__init__(message, key)
 
 @dataclasses.dataclass(frozen=True)
 class GridAxis:
@@ -130,58 +128,58 @@ class Spec:
         return int(np.prod(self.grid_shape, dtype=np.int64)) * (self.samples if self.random else 1)
 
 def _raise(key: str, msg: str):
-    raise SweepError(key, msg)
+    raise SweepError(msg, key)
 
 #: the sweep file's reader (SweepError; the scene file's wording)
 _READ = tomltable.Reader(_raise)
 
 def _rpm_range(key: str, v) -> np.ndarray:
     if not isinstance(v, list) or len(v) != 3:
-        raise SweepError(key, f"expected [A, B, STEP] (three numbers, rpm), got {describe(v)}")
+        raise SweepError(f"expected [A, B, STEP] (three numbers, rpm), got {describe(v)}", key)
     a, b, step = (_READ.number(f"{key}[{i}]", x) for i, x in enumerate(v))
     if step <= 0:
-        raise SweepError(f"{key}[2]", f"STEP must be > 0, got {v[2]!r}")
+        raise SweepError(f"STEP must be > 0, got {v[2]!r}", f"{key}[2]")
     if a < 0:
-        raise SweepError(f"{key}[0]", f"start A must be >= 0, got {v[0]!r}")
+        raise SweepError(f"start A must be >= 0, got {v[0]!r}", f"{key}[0]")
     if b < a:
-        raise SweepError(f"{key}[1]", f"end B must be >= start A, got {v[1]!r}")
+        raise SweepError(f"end B must be >= start A, got {v[1]!r}", f"{key}[1]")
     msg = schema.problem(schema.FIELDS["drive.rpm"], b)
     if msg:
-        raise SweepError(f"{key}[1]", msg)
+        raise SweepError(msg, f"{key}[1]")
     n = math.ceil((b + step / 2 - a) / step)
     if n > MAX_SPEEDS:
-        raise SweepError(key, f"gives {n} speeds, at most {MAX_SPEEDS} allowed")
+        raise SweepError(f"gives {n} speeds, at most {MAX_SPEEDS} allowed", key)
     return np.arange(a, b + step / 2, step)
 
 def _parse_grid(i: int, d: dict) -> GridAxis:
     key = f"grid[{i}]"
     t = _READ.table(d, key, _GRID_KEYS)
     if "parameter" not in d:
-        raise SweepError(f"{key}.parameter", "missing (a parameter path such as \"belt.EI\")")
+        raise SweepError("missing (a parameter path such as \"belt.EI\")", f"{key}.parameter")
     path = t.string("parameter", nonempty=True)
     spacing = t.string("spacing", required=False, default="linear", choices=SPACINGS, nonempty=True)
     has_values = "values" in d
     has_range = [k for k in ("start", "stop", "num") if k in d]
     if has_values and has_range:
-        raise SweepError(f"{key}.{has_range[0]}", "give either values or start/stop/num, not both")
+        raise SweepError("give either values or start/stop/num, not both", f"{key}.{has_range[0]}")
     if has_values:
         if "spacing" in d:
-            raise SweepError(f"{key}.spacing", "applies to start/stop/num only")
+            raise SweepError("applies to start/stop/num only", f"{key}.spacing")
         v = d["values"]
         if not isinstance(v, list) or not v:
-            raise SweepError(f"{key}.values", f"expected a non-empty array of numbers, got {describe(v)}")
+            raise SweepError(f"expected a non-empty array of numbers, got {describe(v)}", f"{key}.values")
         values = np.array([_READ.number(f"{key}.values[{j}]", x) for j, x in enumerate(v)])
     else:
         for k in ("start", "stop", "num"):
             if k not in d:
-                raise SweepError(f"{key}.{k}", "missing (give values = [...] or start, stop and num)")
+                raise SweepError("missing (give values = [...] or start, stop and num)", f"{key}.{k}")
         a, b = t.number("start"), t.number("stop")
         num = t.integer("num", minimum=1)
         if num > MAX_CASES:
-            raise SweepError(f"{key}.num", f"at most {MAX_CASES} cases in a sweep, got {num}")
+            raise SweepError(f"at most {MAX_CASES} cases in a sweep, got {num}", f"{key}.num")
         if spacing == "log":
             if a <= 0 or b <= 0:
-                raise SweepError(f"{key}.spacing", f"\"log\" needs start and stop > 0, got {a!r}, {b!r}")
+                raise SweepError(f"\"log\" needs start and stop > 0, got {a!r}, {b!r}", f"{key}.spacing")
             values = np.geomspace(a, b, num)
         else:
             values = np.linspace(a, b, num)
@@ -192,46 +190,45 @@ def _parse_random(i: int, d: dict, default_seed: int) -> tuple[RandomAxis, int |
     key = f"random[{i}]"
     t = _READ.table(d, key, _RANDOM_KEYS)
     if "parameter" not in d:
-        raise SweepError(f"{key}.parameter", "missing (a parameter path such as \"belt.EI\")")
+        raise SweepError("missing (a parameter path such as \"belt.EI\")", f"{key}.parameter")
     path = t.string("parameter", nonempty=True)
     if "distribution" not in d:
-        raise SweepError(f"{key}.distribution", f"missing (one of {', '.join(DISTRIBUTIONS)})")
+        raise SweepError(f"missing (one of {', '.join(DISTRIBUTIONS)})", f"{key}.distribution")
     dist = t.string("distribution", choices=DISTRIBUTIONS, nonempty=True)
     nominal = t.boolean("nominal")
     if nominal and "mean" in d:
-        raise SweepError(f"{key}.mean", "give either mean or nominal = true, not both")
+        raise SweepError("give either mean or nominal = true, not both", f"{key}.mean")
     mean = t.number("mean", required=False)
     spreads = [k for k in ("std", "tolerance", "relative_tolerance") if k in d]
     bounds = [k for k in ("low", "high") if k in d]
     if bounds:
         if dist != "uniform":
-            raise SweepError(f"{key}.{bounds[0]}", "low/high bound a uniform distribution (distribution = \"uniform\")")
+            raise SweepError("low/high bound a uniform distribution (distribution = \"uniform\")", f"{key}.{bounds[0]}")
         if len(bounds) == 1:
             other = "high" if bounds[0] == "low" else "low"
-            raise SweepError(f"{key}.{other}", "missing (low and high go together)")
+            raise SweepError("missing (low and high go together)", f"{key}.{other}")
         if spreads:
-            raise SweepError(f"{key}.{spreads[0]}", "give either low/high or one spread, not both")
+            raise SweepError("give either low/high or one spread, not both", f"{key}.{spreads[0]}")
         if nominal or mean is not None:
-            raise SweepError(f"{key}.{'mean' if mean is not None else 'nominal'}",
-                             "low/high give the interval: no centre (mean or nominal) with them")
+            raise SweepError("low/high give the interval: no centre (mean or nominal) with them", f"{key}.{'mean' if mean is not None else 'nominal'}")
         low, high = t.number("low"), t.number("high")
         if not high > low:
-            raise SweepError(f"{key}.high", f"must be > low = {low!r}, got {high!r}")
+            raise SweepError(f"must be > low = {low!r}, got {high!r}", f"{key}.high")
         axis = RandomAxis(path, dist, None, low=low, high=high, key=key)
     else:
         if not spreads:
             need = "std, tolerance or relative_tolerance" if dist == "normal" else "low/high, tolerance or relative_tolerance"
-            raise SweepError(key, f"no spread: give {need}")
+            raise SweepError(f"no spread: give {need}", key)
         if len(spreads) > 1:
-            raise SweepError(f"{key}.{spreads[1]}", f"give only one spread (also {spreads[0]})")
+            raise SweepError(f"give only one spread (also {spreads[0]})", f"{key}.{spreads[1]}")
         s = spreads[0]
         if s == "std" and dist != "normal":
-            raise SweepError(f"{key}.std", "std belongs to a normal distribution (uniform: low/high or tolerance)")
+            raise SweepError("std belongs to a normal distribution (uniform: low/high or tolerance)", f"{key}.std")
         if mean is None and not nominal:
-            raise SweepError(f"{key}.mean", "missing: give mean = value or nominal = true (the scene's value)")
+            raise SweepError("missing: give mean = value or nominal = true (the scene's value)", f"{key}.mean")
         x = t.number(s, nonnegative=True)
         if s == "relative_tolerance" and x >= 1.0:
-            raise SweepError(f"{key}.relative_tolerance", f"must be < 1 (a fraction: 0.003 is 0.3 %), got {d[s]!r}")
+            raise SweepError(f"must be < 1 (a fraction: 0.003 is 0.3 %), got {d[s]!r}", f"{key}.relative_tolerance")
         axis = RandomAxis(path, dist, mean, **{s: x}, key=key)
     seed = t.integer("seed", required=False, default=default_seed, minimum=0)
     samples = t.integer("samples", required=False, minimum=1)
@@ -246,22 +243,22 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
     description = top.string("description", required=False, default="", nonempty=True)
     outs = data.get("outputs", ["statics", "modal"])
     if not isinstance(outs, list) or not outs:
-        raise SweepError("outputs", f"expected a non-empty array of {', '.join(OUTPUTS)}, got {describe(outs)}")
+        raise SweepError(f"expected a non-empty array of {', '.join(OUTPUTS)}, got {describe(outs)}", "outputs")
     outputs = []
     for j, o in enumerate(outs):
         o = _READ.string(f"outputs[{j}]", o, choices=OUTPUTS, nonempty=True)
         if o in outputs:
-            raise SweepError(f"outputs[{j}]", f"{o!r} listed twice")
+            raise SweepError(f"{o!r} listed twice", f"outputs[{j}]")
         outputs.append(o)
     outputs = tuple(o for o in OUTPUTS if o in outputs)
     modes = top.integer("modes", required=False, default=12, minimum=1)
     rpm = None
     if "campbell" in outputs:
         if "rpm" not in data:
-            raise SweepError("rpm", "missing: the campbell output needs rpm = [A, B, STEP] (drive-pulley speeds, rpm)")
+            raise SweepError("missing: the campbell output needs rpm = [A, B, STEP] (drive-pulley speeds, rpm)", "rpm")
         rpm = _rpm_range("rpm", data["rpm"])
     elif "rpm" in data:
-        raise SweepError("rpm", "given but \"campbell\" is not in outputs")
+        raise SweepError("given but \"campbell\" is not in outputs", "rpm")
     chunk = top.integer("chunk", required=False, minimum=1)
     seed = top.integer("seed", required=False, default=0, minimum=0)
     sched = top.string("dask_scheduler", required=False, nonempty=True)
@@ -272,36 +269,35 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
         rnd.append(a)
         counts.append((f"random[{i}].samples", n))
     if not grid and not rnd:
-        raise SweepError("grid", "no sweep axes: give at least one [[grid]] or [[random]] table")
+        raise SweepError("no sweep axes: give at least one [[grid]] or [[random]] table", "grid")
     samples = top.integer("samples", required=False, minimum=1)
     skey = "samples"
     for k, n in counts:
         if n is None:
             continue
         if samples is not None and n != samples:
-            raise SweepError(k, f"{n} differs from {samples} ({skey}): random parameters are drawn jointly, "
-                                "so every [[random]] table has the same samples")
+            raise SweepError(f"{n} differs from {samples} ({skey}): random parameters are drawn jointly, "
+                                "so every [[random]] table has the same samples", k)
         samples, skey = n, k
     if rnd and samples is None:
-        raise SweepError("samples", "missing: give samples = N (top level or in a [[random]] table)")
+        raise SweepError("missing: give samples = N (top level or in a [[random]] table)", "samples")
     if not rnd and samples is not None:
-        raise SweepError("samples", "given but there is no [[random]] table")
+        raise SweepError("given but there is no [[random]] table", "samples")
     seen: dict[str, str] = {}
     for a in [*grid, *rnd]:
         if a.parameter in seen:
-            raise SweepError(f"{a.key}.parameter", f"{a.parameter!r} is already swept by {seen[a.parameter]}")
+            raise SweepError(f"{a.parameter!r} is already swept by {seen[a.parameter]}", f"{a.key}.parameter")
         seen[a.parameter] = a.key
     if "belt.static_tension" in seen and "belt.length" in seen:
-        raise SweepError(f"{seen['belt.length']}.parameter",
-                         "belt.length and belt.static_tension cannot both be swept: the belt is given by one of them")
+        raise SweepError("belt.length and belt.static_tension cannot both be swept: the belt is given by one of them", f"{seen['belt.length']}.parameter")
     spec = Spec(outputs=outputs, modes=modes, rpm=rpm, grid=grid, random=tuple(rnd), samples=samples or 0,
                 chunk=chunk, dask_scheduler=sched, description=description, source=source, raw=dict(data))
     n = spec.n_cases
     if n > MAX_CASES:
         dims = " x ".join(str(x) for x in spec.grid_shape) + (f" x {spec.samples} samples" if rnd else "")
-        raise SweepError(skey if rnd else grid[-1].key, f"the sweep has {n} cases ({dims}), more than the limit {MAX_CASES}")
+        raise SweepError(f"the sweep has {n} cases ({dims}), more than the limit {MAX_CASES}", skey if rnd else grid[-1].key)
     if rpm is not None and n * len(rpm) > MAX_CAMPBELL_POINTS:
-        raise SweepError("rpm", f"{n} cases x {len(rpm)} speeds exceed the limit of {MAX_CAMPBELL_POINTS} campbell points")
+        raise SweepError(f"{n} cases x {len(rpm)} speeds exceed the limit of {MAX_CAMPBELL_POINTS} campbell points", "rpm")
     return spec
 
 def load_spec(path: str | os.PathLike) -> Spec:
@@ -326,7 +322,7 @@ def _check_range(key: str, path: str, values) -> None:
     try:
         parameters.check_value(path, values)
     except parameters.ParameterError as exc:
-        raise SweepError(key, f"{path} {str(exc)[len(path) + 2:]}") from None
+        raise SweepError(f"{path} {str(exc)[len(path) + 2:]}", key) from None
 
 def check_spec(scene: Scene, spec: Spec) -> None:
     """Check a parsed sweep against ``scene``: parameter paths and value ranges (:class:`SweepError`)."""
@@ -334,7 +330,7 @@ def check_spec(scene: Scene, spec: Spec) -> None:
         try:
             parameters.check(scene, a.parameter)
         except parameters.ParameterError as exc:
-            raise SweepError(f"{a.key}.parameter", str(exc)) from None
+            raise SweepError(str(exc), f"{a.key}.parameter") from None
     for a in spec.grid:
         _check_range(a.values_key, a.parameter, a.values)
     for a in spec.random:

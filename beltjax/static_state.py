@@ -1,0 +1,206 @@
+"""The user-facing static state of a drive: the operating point under the scene's mean loads, or
+the unloaded state, with tensions, hub loads, the drive torque and the slip margins (SI units)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from beltjax import critical, drive, schema
+from beltjax.drive import Installation
+from beltjax.scene import TENSIONER, Scene
+from beltjax.drive.effects import effects_of
+from beltjax.statics import StaticsError, check_installation, check_solved, install_compiled, solve_at
+
+
+@dataclass
+class StaticResult:
+    """Static state of a drive (SI units; route order); see :func:`analyse_statics`.
+
+    span_names; span_tensions_N: mean axial force per span; span_lengths_m;
+    belt_length_m: unstretched belt length; installation_tension_N; stretch;
+    hub_forces_N: force of the belt on each hub {name: [Fx, Fy]} (the tensioner
+    idler as "tensioner"); tensioner_angle_deg, spring_moment_Nm,
+    tensioner_pivot_force_N (None without a tensioner); wrap_angles_deg;
+    speed_m_s; converged, iterations; span_forces_N: each span's force on the pulleys,
+    tension less rhoA c^2 lam (:mod:`beltjax.critical`); supercritical: None, or the
+    one-line reason why the state is past the critical speed (only with
+    ``analyse_statics(..., allow_supercritical=True)``).  state: "operating point" (the
+    scene's mean loads act) or "unloaded"; drive_torque_Nm: the torque the drive pulley's shaft
+    applies (N m, CCW positive); loads_Nm: the mean load on each body (N m); unloaded: the
+    unloaded state's :meth:`to_json` at the same speed (with the operating point); friction:
+    per route entry the wrap, the friction the arc needs and has and the slip margin
+    (:mod:`beltjax.friction`); slipping: the entries whose arcs would slip.
+    """
+
+    span_names: list[str]
+    span_tensions_N: np.ndarray
+    span_lengths_m: np.ndarray
+    belt_length_m: float
+    installation_tension_N: float
+    stretch: float
+    hub_forces_N: dict
+    wrap_angles_deg: dict
+    speed_m_s: float
+    tensioner_angle_deg: float | None
+    spring_moment_Nm: float | None
+    tensioner_pivot_force_N: list | None
+    iterations: int
+    qi: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)
+    inst: Installation = field(repr=False)
+    span_forces_N: np.ndarray | None = None
+    supercritical: str | None = None
+    state: str = "unloaded"
+    drive_torque_Nm: float = float("nan")
+    loads_Nm: dict = field(default_factory=dict)
+    unloaded: dict | None = None
+    friction: dict = field(default_factory=dict)
+
+    @property
+    def slipping(self) -> list[str]:
+        """Route entries whose arcs would slip (slip margin < 0)."""
+        from beltjax import friction
+
+        return friction.slipping(self.friction)
+
+    def to_json(self) -> dict:
+        """statics.json contents."""
+        d = {
+            "state": self.state,
+            "span_names": self.span_names,
+            "span_tensions_N": [float(x) for x in self.span_tensions_N],
+            "span_forces_N": None if self.span_forces_N is None else [float(x) for x in self.span_forces_N],
+            "span_lengths_m": [float(x) for x in self.span_lengths_m],
+            "belt_length_m": self.belt_length_m,
+            "installation_tension_N": self.installation_tension_N,
+            "stretch": self.stretch,
+            "hub_forces_N": {k: [float(v[0]), float(v[1])] for k, v in self.hub_forces_N.items()},
+            "hub_force_magnitudes_N": {k: float(np.hypot(*v)) for k, v in self.hub_forces_N.items()},
+            "wrap_angles_deg": self.wrap_angles_deg,
+            "speed_m_s": self.speed_m_s,
+            "drive_torque_Nm": self.drive_torque_Nm,
+            "loads_Nm": self.loads_Nm,
+            "friction": self.friction,
+            "slipping": self.slipping,
+            "newton_iterations": self.iterations,
+        }
+        if self.tensioner_angle_deg is not None:
+            d["tensioner_angle_deg"] = self.tensioner_angle_deg
+            d["spring_moment_Nm"] = self.spring_moment_Nm
+            d["tensioner_pivot_force_N"] = self.tensioner_pivot_force_N
+        if self.unloaded is not None:
+            d["unloaded"] = self.unloaded
+        return d
+
+
+def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercritical: bool = False,
+                    loaded: bool | None = None) -> StaticResult:
+    """Static state of the drive at belt speed ``speed`` (m/s; default from speed_rpm).
+
+    loaded: the operating point, under the scene's mean loads (each lasting [[torque]]'s mean,
+    the listed bearing drag at the steady speeds: :func:`beltjax.drive.mean_body_loads`), with
+    the unloaded state at the same speed in ``unloaded``; False: the unloaded state only;
+    None (default): the operating point when the scene has mean loads, else the unloaded state.
+
+    Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
+    Newton iteration fails even with speed stepping, a span would go slack, or the
+    speed is past the drive's critical speed (a span's force on the pulleys, tension
+    less rhoA c^2 lam, <= 0: :mod:`beltjax.critical`; the line names the span, the speed
+    and the critical speed).  With ``allow_supercritical`` such a state is returned
+    instead, with the reason in ``supercritical`` (for the modal analysis, which reports
+    it as unstable, and the transients, which record it).  A scene that fails the scene
+    file's checks (:func:`beltjax.validate.check_scene`) or a speed that is NaN, infinite,
+    negative or beyond 1e4 m/s is a one-line :class:`beltjax.errors.BeltjaxError`.  An arc
+    whose friction would not carry the state is reported in ``slipping`` (not an error).
+    """
+    from beltjax import validate
+
+    validate.check_scene(scene)
+    v = float(drive.belt_speed(scene)) if speed is None else schema.number(speed, "speed", "drive.speed")
+    scene = drive.canonical(scene)
+    inst = install_compiled(scene)
+    check_installation(scene, inst)
+    if loaded is None:
+        loaded = drive.has_mean_loads(scene)
+    res = _state(scene, v, loaded, allow_supercritical)
+    if loaded:
+        res.unloaded = _state(scene, v, False, True).to_json()
+    return res
+
+
+def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool) -> StaticResult:
+    """:func:`analyse_statics` of a checked, canonical scene at belt speed v (m/s)."""
+    from beltjax import friction
+
+    what = "operating point" if loaded else "unloaded state"
+    out, conv, it, rn = solve_at(scene, v, loaded)
+    if not conv:
+        vc = critical.critical_speed(scene, v) if v != 0.0 else None
+        if vc is not None:
+            raise StaticsError(critical.message(scene, abs(v), vc, None, None))
+        raise StaticsError(f"no static equilibrium found for the {what} (Newton stalled at residual {rn:.3g})",
+                           "statics")
+    names = drive.span_names(scene)
+    tensions = np.asarray(out["tensions"])
+    for nm, T in zip(names, tensions):
+        if not T > 0:
+            because = (": no belt could carry these loads at this installation tension (the pulleys at its ends "
+                       "would need an infinite friction coefficient)" if loaded else "")
+            raise StaticsError(f"span {nm} would go slack at the {what} (tension {T:.4g} N){because}", "statics")
+    forces = critical.output_forces(scene, out, v)
+    reason = None
+    if v != 0.0 and not np.all(forces > 0):
+        vc = critical.critical_speed(scene, v)
+        reason = critical.message(scene, abs(v), vc, forces, tensions)
+        if not allow_supercritical:
+            raise StaticsError(reason)
+    order = scene.route.order
+    bodies = drive.body_names(scene)
+    hubs = np.asarray(out["hubs"])
+    inst = out["inst"]
+    check_solved(scene, float(inst.tension), math.degrees(float(out["theta"])) if scene.tensioner is not None else None)
+    loads = np.asarray(out["loads"])
+    res = StaticResult(
+        span_names=names,
+        span_tensions_N=tensions,
+        span_lengths_m=np.asarray(out["lengths"]),
+        belt_length_m=float(inst.belt_length),
+        installation_tension_N=float(inst.tension),
+        stretch=float(inst.stretch),
+        hub_forces_N={order[i]: hubs[i] for i in range(len(order))},
+        wrap_angles_deg={order[i]: float(np.degrees(inst.wrap[i])) for i in range(len(order))},
+        speed_m_s=v,
+        tensioner_angle_deg=None,
+        spring_moment_Nm=None,
+        tensioner_pivot_force_N=None,
+        iterations=int(it),
+        qi=np.asarray(out["qi"]),
+        q=np.asarray(out["q"]),
+        inst=inst,
+        span_forces_N=forces,
+        supercritical=reason,
+        state="operating point" if loaded else "unloaded",
+        drive_torque_Nm=float(out["drive_torque"]),
+        loads_Nm={bodies[i]: float(loads[i]) for i in range(len(bodies)) if loads[i] != 0.0},
+        friction=friction.assess(scene, forces, np.asarray(inst.wrap)),
+    )
+    worst = max(res.friction, key=lambda k: np.nan_to_num(res.friction[k]["friction_needed"]))
+    need = res.friction[worst]["friction_needed"]
+    if loaded and need > schema.FIELDS["belt.friction_coefficient"].high:
+        raise StaticsError(f"pulley {worst!r} would need a friction coefficient of {need:.3g} to carry the operating "
+                           f"point: no belt could (at most {schema.FIELDS['belt.friction_coefficient'].high:g}); raise "
+                           "the installation tension or the wrap, or lower the loads", "statics")
+    if scene.tensioner is not None:
+        th = float(out["theta"])
+        res.tensioner_angle_deg = math.degrees(th)
+        res.spring_moment_Nm = float(drive.spring_moment(th, scene))
+        k = order.index(TENSIONER)
+        pivot = hubs[k].copy()
+        if "gravity" in effects_of(scene):
+            t = scene.tensioner
+            pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
+        res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
+    return res

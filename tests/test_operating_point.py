@@ -1,0 +1,202 @@
+"""The operating point: statics under the scene's mean loads (issue 22, item 1), and the slip
+margins by the capstan law (item 3).
+
+Checks that could fail: each free pulley's moment balance (the span forces on the pulleys differ
+by exactly M / R across a loaded pulley, the idler's by its bearing drag), the power balance of
+the steady motion (drive torque times its speed plus every load's power is zero), both
+fidelities agreeing, the gradient of the operating point against finite differences, the
+unloaded state kept beside it, the capstan demand against Euler-Eytelwein written out, the
+ribbed belt's wedge on front- but not back-side pulleys, and the command's outputs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import equinox as eqx
+import jax
+import numpy as np
+import pytest
+
+from beltjax import drive, friction, statics
+from beltjax.cli import main
+from beltjax.scene import loads_scene
+
+from _scenes import scene_text
+
+M_ALT = 6.0  # N m on the alternator (CCW: against the clockwise travel)
+
+
+def _two_pulley(fidelity: str, torque: float = M_ALT, extra_belt: str = "") -> str:
+    txt = scene_text("two_pulley_T400.toml")
+    txt = txt.replace("driven = false", "driven = true").replace("speed_rpm = 0.0", "speed_rpm = 800.0", 1)
+    txt = re.sub(r'fidelity = "ancf"', f'fidelity = "{fidelity}"', txt)
+    txt = re.sub(r"elements_per_span = \d+", "elements_per_span = 4", txt)
+    txt = txt.replace("static_tension = 400.0", "static_tension = 400.0\n" + extra_belt)
+    return txt + f'\n[[torque]]\npulley = "alternator"\nmean_Nm = {torque}\n'
+
+
+def _tensioner(drag: float = 0.02) -> str:
+    txt = scene_text("sim_tensioner_installation.toml")
+    txt = txt.replace("speed_rpm = 0.0", "speed_rpm = 1500.0", 1)
+    txt = txt.replace('effects = ["belt_damping", "tensioner_damping"]', 'effects = ["transport", "bearing_damping"]')
+    txt = txt.replace("CA = 3.33 ", "CA = 0.0 ").replace("damping = 0.1 ", "damping = 0.0 ")
+    txt = re.sub(r"(?ms)^\[initial\].*?(?=^\[)", "", txt)
+    txt = txt.replace("inertia = 1.7019e-3        # kg m^2", f"inertia = 1.7019e-3\nbearing_damping = {drag}", 1)
+    return txt + f'\n[[torque]]\npulley = "alternator"\nmean_Nm = {M_ALT}\n'
+
+
+@pytest.fixture(scope="module", params=["rotational", "ancf"])
+def two_pulley(request):
+    sc = loads_scene(_two_pulley(request.param))
+    return sc, statics.analyse_statics(sc)
+
+
+def test_moment_balance_and_power_of_a_loaded_two_pulley_drive(two_pulley):
+    sc, r = two_pulley
+    assert r.state == "operating point" and r.loads_Nm == {"alternator": M_ALT}
+    R_alt = float(sc.pulley("alternator").radius)
+    R_crank = float(sc.pulley("crank").radius)
+    F = r.span_forces_N  # crank-alternator (arrives at the alternator), alternator-crank (leaves it)
+    # the alternator turns clockwise: the span leaving it is the tight one (it pulls the alternator round)
+    assert F[1] - F[0] == pytest.approx(M_ALT / R_alt, rel=1e-9)
+    # power: the drive torque at the crank's speed balances the load at the alternator's (no losses)
+    v = r.speed_m_s
+    w_crank, w_alt = -v / R_crank, -v / R_alt  # clockwise
+    assert r.drive_torque_Nm * w_crank + M_ALT * w_alt == pytest.approx(0.0, abs=1e-9 * M_ALT * abs(w_alt))
+    # the unloaded state is kept beside it, equal tensions
+    un = r.unloaded
+    assert un["state"] == "unloaded" and un["drive_torque_Nm"] == pytest.approx(0.0, abs=1e-8)
+    assert np.allclose(un["span_tensions_N"], 400.0, rtol=1e-9)
+    # fixed centres and equal span lengths: the belt's length is kept, so the tensions move apart evenly
+    assert np.mean(r.span_tensions_N) == pytest.approx(400.0, rel=2e-3)
+
+
+def test_both_fidelities_give_one_operating_point():
+    a = statics.analyse_statics(loads_scene(_two_pulley("rotational")))
+    b = statics.analyse_statics(loads_scene(_two_pulley("ancf")))
+    assert np.allclose(a.span_tensions_N, b.span_tensions_N, rtol=1e-6)
+    assert a.drive_torque_Nm == pytest.approx(b.drive_torque_Nm, rel=1e-9)
+
+
+def test_the_unloaded_state_on_request_and_without_loads():
+    sc = loads_scene(_two_pulley("rotational"))
+    r = statics.analyse_statics(sc, loaded=False)
+    assert r.state == "unloaded" and r.unloaded is None and np.allclose(r.span_tensions_N, 400.0, rtol=1e-9)
+    r0 = statics.analyse_statics(loads_scene(scene_text("two_pulley_T400.toml")))
+    assert r0.state == "unloaded" and r0.loads_Nm == {}
+
+
+def test_tensioner_drive_with_bearing_drag_balances_moments_and_power():
+    sc = loads_scene(_tensioner(drag=0.02))
+    r = statics.analyse_statics(sc)
+    v = r.speed_m_s
+    order = sc.route.order
+    senses = np.asarray(sc.route.senses)
+    R = {"crank": 0.1015, "alternator": 0.0375, "tensioner": 0.037}
+    w = {k: senses[i] * v / R[k] for i, k in enumerate(order)}
+    drag = -0.02 * w["alternator"]
+    assert r.loads_Nm["alternator"] == pytest.approx(M_ALT + drag, rel=1e-12)
+    # moment balance of the alternator and of the (drag-free) idler: span forces on the pulleys
+    F = dict(zip(r.span_names, r.span_forces_N))
+    s_alt = senses[order.index("alternator")]
+    assert s_alt * R["alternator"] * (F["alternator-crank"] - F["tensioner-alternator"]) == pytest.approx(
+        -(M_ALT + drag), rel=1e-9)
+    assert F["crank-tensioner"] == pytest.approx(F["tensioner-alternator"], rel=1e-9)
+    # power balance, bearing drag included
+    power = r.drive_torque_Nm * w["crank"] + (M_ALT + drag) * w["alternator"]
+    assert power == pytest.approx(0.0, abs=1e-8 * abs(M_ALT * w["alternator"]))
+    # the arm moved: the tight side now pulls the idler
+    assert r.tensioner_angle_deg != pytest.approx(r.unloaded["tensioner_angle_deg"], abs=1e-3)
+
+
+def test_operating_point_gradient_matches_finite_differences():
+    """d(tight-side tension)/d(load) through the equilibrium's implicit differentiation."""
+    sc = drive.canonical(loads_scene(_two_pulley("rotational")))
+    v = float(drive.belt_speed(sc))
+
+    def tight(m):
+        s = eqx.tree_at(lambda x: x.torques[0].mean_Nm, sc, m)
+        out, _ = statics._statics_core(s, v, loaded=True)
+        return out["tensions"][1]
+
+    m0 = jax.numpy.asarray(M_ALT)
+    g = float(jax.grad(tight)(m0))
+    h = 1e-3
+    fd = (float(tight(m0 + h)) - float(tight(m0 - h))) / (2 * h)
+    assert g == pytest.approx(fd, rel=1e-6)
+    R = float(sc.pulley("alternator").radius)
+    assert g == pytest.approx(1 / (2 * R), rel=0.02)  # half the load on each span
+
+
+def test_capstan_demand_and_the_wedge():
+    txt = _two_pulley("rotational", extra_belt="friction_coefficient = 0.25\ngroove_angle_deg = 40.0")
+    sc = loads_scene(txt)
+    r = statics.analyse_statics(sc)
+    F = r.span_forces_N
+    for i, name in enumerate(sc.route.order):
+        wrap = math.radians(r.friction[name]["wrap_deg"])
+        need = abs(math.log(F[i] / F[i - 1])) / wrap  # Euler-Eytelwein, centrifugal tension out
+        assert r.friction[name]["friction_needed"] == pytest.approx(need, rel=1e-12)
+        have = 0.25 / math.sin(math.radians(20.0))  # the ribs' wedge
+        assert r.friction[name]["friction_available"] == pytest.approx(have, rel=1e-12)
+        assert r.friction[name]["slip_margin"] == pytest.approx(1 - need / have, rel=1e-12)
+    # a back-side pulley runs on the belt's flat back: no wedge
+    sc2 = loads_scene(_tensioner().replace("rhoA = 0.12101 ", "friction_coefficient = 0.3\ngroove_angle_deg = 40.0\n"
+                                                             "rhoA = 0.12101 "))
+    mu = friction.effective_coefficients(sc2)
+    order = sc2.route.order
+    assert mu[order.index("tensioner")] == pytest.approx(0.3)
+    assert mu[order.index("alternator")] == pytest.approx(0.3 / math.sin(math.radians(20.0)))
+
+
+def test_a_pulley_that_would_slip_is_reported(tmp_path, capsys):
+    txt = _two_pulley("rotational", torque=15.0, extra_belt="friction_coefficient = 0.3")
+    path = tmp_path / "slip.toml"
+    path.write_text(txt)
+    assert main(["statics", str(path), "--out", str(tmp_path / "out")]) == 0
+    out, err = capsys.readouterr()
+    assert "operating point" in out and "SLIPS" in out
+    assert re.search(r"warning: the belt would slip at the operating point \(crank needs mu' = [\d.]+, has 0\.3", err)
+    data = json.loads((tmp_path / "out" / "statics.json").read_text())
+    assert data["state"] == "operating point" and set(data["slipping"]) == {"crank", "alternator"}
+    assert data["unloaded"]["state"] == "unloaded" and data["drive_torque_Nm"] < 0
+    assert main(["statics", str(path), "--out", str(tmp_path / "out2"), "--unloaded"]) == 0
+    data = json.loads((tmp_path / "out2" / "statics.json").read_text())
+    assert data["state"] == "unloaded" and data["slipping"] == [] and "unloaded" not in data
+
+
+def test_a_load_the_belt_cannot_carry_is_a_slack_span():
+    """A load beyond what the installation tension carries slackens the slack side: one line."""
+    from beltjax.errors import BeltjaxError
+
+    with pytest.raises(BeltjaxError, match=r"span crank-alternator would go slack at the operating point"):
+        statics.analyse_statics(loads_scene(_two_pulley("rotational", torque=40.0)))
+
+
+def test_capstan_limit_of_a_two_pulley_drive_in_closed_form():
+    """The largest torque a two-pulley drive transmits: F_t / F_s = exp(mu theta) on the smaller
+    wrap and F_t + F_s = 2 F_0 (fixed centres, equal spans: the belt's length is kept), so
+    M_max = 2 F_0 R tanh(mu theta / 2) with F_0 the installation tension less the centrifugal
+    part.  Found on the operating point by bisection on the slip margin."""
+    mu = 0.3
+
+    def margin(m):
+        r = statics.analyse_statics(loads_scene(_two_pulley("rotational", torque=m,
+                                                            extra_belt=f"friction_coefficient = {mu}")))
+        return min(v["slip_margin"] for v in r.friction.values()), r
+
+    lo, hi = 1.0, 25.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if margin(mid)[0] > 0 else (lo, mid)
+    _, r = margin(lo)
+    sc = loads_scene(_two_pulley("rotational"))
+    R = float(sc.pulley("alternator").radius)
+    theta = math.radians(min(v["wrap_deg"] for v in r.friction.values()))
+    F0 = float(np.mean(r.unloaded["span_forces_N"]))
+    m_max = 2 * F0 * R * math.tanh(mu * theta / 2)
+    assert lo == pytest.approx(m_max, rel=2e-3)
+    assert min(r.friction, key=lambda k: r.friction[k]["slip_margin"]) == "alternator"  # the smaller wrap
