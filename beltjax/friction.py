@@ -22,31 +22,38 @@ import numpy as np
 from beltjax.scene import TENSIONER, Scene
 
 
-def effective_coefficients(scene: Scene) -> np.ndarray:
-    """Effective friction coefficient mu' (-) per route entry, NaN where the scene gives none."""
+def effective_coefficients(scene: Scene):
+    """Effective friction coefficient mu' (-) per route entry, NaN where the scene gives none
+    (pure: differentiable in the coefficients and the groove angle)."""
     b = scene.belt
     out = []
     for name in scene.route.order:
         mu = None if name == TENSIONER else scene.pulley(name).friction_coefficient
         mu = b.friction_coefficient if mu is None else mu
         if mu is None:
-            out.append(np.nan)
+            out.append(jnp.asarray(jnp.nan))
             continue
-        mu = float(mu)
         if b.groove_angle_deg is not None and name not in scene.route.back_side:
-            mu /= np.sin(np.radians(float(b.groove_angle_deg)) / 2)
-        out.append(mu)
-    return np.asarray(out)
+            mu = mu / jnp.sin(jnp.deg2rad(b.groove_angle_deg) / 2)
+        out.append(jnp.asarray(mu))
+    return jnp.stack(out)
+
+
+def given(scene: Scene) -> list[int]:
+    """Route indices of the entries with a friction coefficient (the scene's structure)."""
+    b = scene.belt
+    return [i for i, name in enumerate(scene.route.order)
+            if b.friction_coefficient is not None or (name != TENSIONER and scene.pulley(name).friction_coefficient is not None)]
 
 
 def demand(forces, wrap):
     """Friction coefficient each arc needs (-), route order: |ln(F_out / F_in)| / wrap.
 
-    forces: each span's force on the pulleys (N, route order: span i leaves entry i); wrap:
+    forces: each span's force on the pulleys (N, route order along the last axis: span i leaves entry i); wrap:
     wrap angles (rad).  NaN where a span's force is not positive (a slack or supercritical span
     carries nothing: no capstan ratio)."""
     forces = jnp.asarray(forces)
-    f_in = jnp.roll(forces, 1)  # span i-1 arrives at entry i
+    f_in = jnp.roll(forces, 1, axis=-1)  # span i-1 arrives at entry i
     ok = (forces > 0) & (f_in > 0)
     ratio = jnp.where(ok, forces / jnp.where(ok, f_in, 1.0), 1.0)
     return jnp.where(ok, jnp.abs(jnp.log(ratio)) / wrap, jnp.nan)
@@ -61,7 +68,7 @@ def assess(scene: Scene, forces, wrap) -> dict:
     """Per route entry: wrap (deg), friction needed, available (None if not given) and slip margin
     (None if not given), for a steady state whose spans pull the pulleys with ``forces`` (N)."""
     need = np.asarray(demand(forces, np.asarray(wrap)))
-    have = effective_coefficients(scene)
+    have = np.asarray(effective_coefficients(scene))
     margin = np.asarray(margins(need, have))
     out = {}
     for i, name in enumerate(scene.route.order):

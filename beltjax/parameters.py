@@ -27,6 +27,8 @@ got 1e+20``.  Traced values are never checked (no Python branching on them).
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Mapping
 
 import equinox as eqx
@@ -40,9 +42,11 @@ from beltjax.scene import Scene
 
 _COMPONENTS = {"x": 0, "y": 1}
 _VECTORS = {"pulley": ("center", "cm_offset"), "tensioner": ("pivot",)}
-_BELT = ("EA", "EI", "rhoA", "CA", "static_tension", "length")
+_BELT = ("EA", "EI", "rhoA", "CA", "static_tension", "length", "friction_coefficient", "groove_angle_deg")
 _PULLEY = ("radius", "mass", "inertia", "speed_rpm", "acceleration_rpm_per_s",
-           "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "bearing_damping")
+           "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "bearing_damping", "friction_coefficient")
+#: keys a scene may leave out (no value to sweep or fit unless given)
+_OPTIONAL = ("friction_coefficient", "groove_angle_deg")
 #: pulley keys of the drive pulley only (its speed) and of driven pulleys only (prescribed motion)
 _DRIVE_ONLY = ("speed_rpm",)
 _DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
@@ -72,11 +76,14 @@ def _motion_rule(scene: Scene, name: str, key: str) -> str | None:
 
 def paths(scene: Scene) -> list[str]:
     """Every scalar parameter path of ``scene`` (see the module docstring): a speed only on the
-    drive pulley, an acceleration or fluctuation only on driven pulleys."""
-    out = [f"belt.{k}" for k in _BELT]
+    drive pulley, an acceleration or fluctuation only on driven pulleys, an optional key
+    (friction coefficients, groove angle) only where the scene gives it."""
+    b = scene.belt
+    out = [f"belt.{k}" for k in _BELT if k not in _OPTIONAL or getattr(b, k) is not None]
     for p in scene.pulleys:
         out += [f"pulley.{p.name}.{v}.{c}" for v in _VECTORS["pulley"] for c in _COMPONENTS]
-        out += [f"pulley.{p.name}.{k}" for k in _PULLEY if _motion_rule(scene, p.name, k) is None]
+        out += [f"pulley.{p.name}.{k}" for k in _PULLEY if _motion_rule(scene, p.name, k) is None
+                and (k not in _OPTIONAL or getattr(p, k) is not None)]
     if scene.tensioner is not None:
         out += [f"tensioner.pivot.{c}" for c in _COMPONENTS]
         out += [f"tensioner.{k}" for k in _TENSIONER]
@@ -191,10 +198,7 @@ def _set(scene: Scene, path: str, value) -> Scene:
     value = jnp.asarray(value, dtype=jnp.float64)
     if name in ("static_tension", "length"):
         other = "length" if name == "static_tension" else "static_tension"
-        belt = scene.belt
-        fields = {k: getattr(belt, k) for k in ("EA", "EI", "rhoA", "static_tension", "length", "CA")}
-        fields[name], fields[other] = value, None
-        return eqx.tree_at(lambda s: s.belt, scene, type(belt)(**fields))
+        return eqx.tree_at(lambda s: s.belt, scene, dataclasses.replace(scene.belt, **{name: value, other: None}))
     leaf = getattr(owner(scene), name)
     if leaf is None:
         raise ParameterError("this parameter is not set in the scene (give it in the scene file first)", path)

@@ -24,6 +24,7 @@ _SIM_CHANNELS = {
     "spring_moment_Nm": ("tensioner spring moment", "N m", 1.0, None),
     "drive_torques_Nm": ("drive torque", "N m", 1.0, None),
     "node_displacements_m": ("node displacement", "m", 1e3, "mm"),
+    "slip_margins": ("slip margin (capstan law)", "-", 1.0, None),
 }
 _SPECTRUM_CHANNELS = ("hub_forces_N", "span_tensions_N", "node_displacements_m")
 _MAX_POINTS = 20000

@@ -11,6 +11,7 @@ descriptions, file names, parameter paths, dataset labels) enters a figure throu
 
 from __future__ import annotations
 
+import logging
 import textwrap
 import unicodedata
 import warnings
@@ -21,6 +22,10 @@ from matplotlib.figure import Figure
 
 from beltjax import ancf
 from beltjax.span import element_index
+
+# a matplotlib without its mathtext fonts (some trimmed installs) falls back to DejaVu Sans for
+# log-axis ticks and offsets, and says so once per glyph set on stderr: not the user's concern
+logging.getLogger("matplotlib.font_manager").setLevel(logging.ERROR)
 
 #: most mode-shape panels in one modes.png (a larger --modes is cut to this, with a note)
 MAX_MODE_PANELS = 24

@@ -16,10 +16,11 @@ import numpy as np
 from beltjax import excitation
 
 
-def span_episodes(t, values, names, value_key: str, at_first: dict | None = None) -> list[dict]:
+def span_episodes(t, values, names, value_key: str, at_first: dict | None = None, what: str = "span") -> list[dict]:
     """Spans whose ``values`` (nt, n) fell to zero or below at an output sample of t (s).
 
-    One record per such span: span, ``value_key`` (the lowest value), t_first_s, t_last_s
+    One record per such span (or pulley: ``what`` names the record's key): span, ``value_key``
+    (the lowest value), t_first_s, t_last_s
     (the first and last such samples), samples (how many) and, for each name -> (nt,) array
     of ``at_first``, its value at the first such sample; [] when none did.  Dips shorter than
     the output interval can pass between samples.  The one mechanism of :func:`slack_spans`
@@ -29,7 +30,8 @@ def span_episodes(t, values, names, value_key: str, at_first: dict | None = None
     for j, name in enumerate(names):
         bad = np.flatnonzero(values[:, j] <= 0.0)
         if bad.size:
-            rec = dict(span=name, t_first_s=float(t[bad[0]]), t_last_s=float(t[bad[-1]]), samples=int(bad.size))
+            rec = {what: name}
+            rec.update(t_first_s=float(t[bad[0]]), t_last_s=float(t[bad[-1]]), samples=int(bad.size))
             rec[value_key] = float(np.min(values[:, j]))
             rec.update({k: float(v[bad[0]]) for k, v in (at_first or {}).items()})
             out.append(rec)
@@ -72,8 +74,24 @@ def slack_warning(record: dict) -> str:
             "the model assumes taut spans, so its results there are not physical")
 
 
+def slipping_pulleys(t, margins, names) -> list[dict]:
+    """Pulleys whose slip margin (-, :mod:`beltjax.friction`) fell to zero or below at an output
+    sample of t (s): the capstan limit of their arc was reached.  Records as
+    :func:`slack_spans` with pulley and min_slip_margin."""
+    return span_episodes(t, margins, names, "min_slip_margin", what="pulley")
+
+
+def slip_warning(record: dict) -> str:
+    """One line saying that (and when) a pulley's arc reached its capstan limit."""
+    return (f"warning: the belt would slip on {record['pulley']!r} ({record['samples']} output samples between "
+            f"t = {record['t_first_s']:.4g} and {record['t_last_s']:.4g} s, slip margin down to "
+            f"{record['min_slip_margin']:.3g}): the capstan limit is exceeded, and this model's belt does not slip")
+
+
 def run_warnings(meta: dict) -> list[str]:
     """The one-line warnings of a run, from its meta: slack spans, spans past the critical
-    speed (:func:`slack_warning`) and forcing the step resolves poorly (:func:`beltjax.excitation.warning`)."""
+    speed (:func:`slack_warning`), arcs past their capstan limit (:func:`slip_warning`) and
+    forcing the step resolves poorly (:func:`beltjax.excitation.warning`)."""
     lines = [slack_warning(r) for k in ("slack_spans", "supercritical_spans") for r in meta.get(k, [])]
+    lines += [slip_warning(r) for r in meta.get("slipping_pulleys", [])]
     return lines + [excitation.warning(r) for r in meta.get("excitation_warnings", [])]

@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, excitation, signals, statics
-from beltjax.span_flags import run_warnings, slack_spans, slack_warning, supercritical_spans  # noqa: F401
+from beltjax.span_flags import run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
@@ -300,6 +300,25 @@ def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
         )
 
 
+def _friction_channels(scene: Scene, inst, pulley_forces, t, chans: dict, cols: dict) -> list[dict]:
+    """Add the friction each arc needs (capstan law, :mod:`beltjax.friction`) and, where the scene
+    gives a friction coefficient, the slip margins to the channels; the pulleys whose margin
+    fell to zero or below (:func:`beltjax.span_flags.slipping_pulleys`).  A span that carries
+    nothing (slack or past the critical speed: flagged on its own) counts as 1e-9 N."""
+    from beltjax import friction
+
+    need = np.asarray(friction.demand(np.maximum(pulley_forces, 1e-9), np.asarray(inst.wrap)))
+    order = list(scene.route.order)
+    chans["friction_needed"], cols["friction_needed"] = need, order
+    have = np.asarray(friction.effective_coefficients(scene))
+    given = friction.given(scene)
+    if not given:
+        return []
+    margins = np.asarray(friction.margins(need[:, given], have[given]))
+    chans["slip_margins"], cols["slip_margins"] = margins, [order[i] for i in given]
+    return slipping_pulleys(t, margins, cols["slip_margins"])
+
+
 _RESULT_MESSAGES = {
     "nonlinear_max_steps_reached": "the implicit (Newton) iteration did not converge",
     "max_steps_reached": "the solver hit max_steps (simulation.max_steps)",
@@ -440,6 +459,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         if not np.all(np.isfinite(v)):
             raise TransientError(f"output {k} is not finite: the run diverged")
     _check_slide(scene, inst, chans["pulley_rotations_deg"], t)
+    slipping = _friction_channels(scene, inst, pulley_forces, t, chans, cols)
     meta = dict(
         fidelity=scene.model.fidelity,
         elements_per_span=drive.spans_of(scene).independent // 4,
@@ -456,6 +476,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         installation_tension_N=float(inst.tension),
         slack_spans=slack_spans(t, chans["span_tensions_N"], cols["span_tensions_N"]),
         supercritical_spans=supercritical_spans(t, pulley_forces, cols["span_forces_N"], chans["belt_speed_m_s"]),
+        slipping_pulleys=slipping,
         excitation_warnings=[*forcing.warnings,
                              *excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed)],
     )

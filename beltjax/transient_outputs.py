@@ -123,4 +123,6 @@ UNITS = dict(
     arm_angle_deg="deg",
     spring_moment_Nm="N m",
     node_displacements_m="m",
+    friction_needed="-",
+    slip_margins="-",
 )

@@ -22,7 +22,7 @@ import pytest
 
 from beltjax import drive, friction, statics
 from beltjax.cli import main
-from beltjax.scene import loads_scene
+from beltjax.scene import load_scene, loads_scene
 
 from _scenes import scene_text
 
@@ -200,3 +200,70 @@ def test_capstan_limit_of_a_two_pulley_drive_in_closed_form():
     m_max = 2 * F0 * R * math.tanh(mu * theta / 2)
     assert lo == pytest.approx(m_max, rel=2e-3)
     assert min(r.friction, key=lambda k: r.friction[k]["slip_margin"]) == "alternator"  # the smaller wrap
+
+
+def test_a_transient_under_steady_loads_starts_at_its_operating_point_and_reports_slip():
+    """Rotational two-pulley drive, a lasting load and a pulse on top: the run starts at the
+    operating point (the slip margins equal the statics' until the pulse), and the pulse that
+    passes the capstan limit is reported, with the time it began."""
+    from beltjax import transient
+    from beltjax.span_flags import run_warnings
+
+    txt = _two_pulley("rotational", extra_belt="friction_coefficient = 0.3\nCA = 2.0")
+    txt = txt.replace('effects = ["transport"]', 'effects = ["transport", "belt_damping"]')
+    st = statics.analyse_statics(loads_scene(txt))
+    txt += '\n[[torque]]\npulley = "alternator"\nmean_Nm = 8.0\nt_start_s = 0.1\nt_end_s = 0.2\n'
+    res = transient.simulate(loads_scene(txt), 0.3)
+    t, m = res.t, res.channels["slip_margins"]
+    assert res.columns["slip_margins"] == ["crank", "alternator"]
+    before = t < 0.1
+    steady = np.array([st.friction[k]["slip_margin"] for k in ("crank", "alternator")])
+    assert np.max(np.abs(m[before] - steady)) < 1e-6
+    assert np.allclose(res.channels["friction_needed"][before], [st.friction[k]["friction_needed"]
+                                                                 for k in ("crank", "alternator")], atol=1e-6)
+    rec = {r["pulley"]: r for r in res.meta["slipping_pulleys"]}
+    assert set(rec) == {"crank", "alternator"}
+    assert 0.1 <= rec["alternator"]["t_first_s"] < 0.11  # the pulse (and the ringing after it)
+    assert rec["alternator"]["min_slip_margin"] < 0
+    assert any("the belt would slip on 'alternator'" in w for w in run_warnings(res.meta))
+
+
+FEAD = scene_text("fead_8pulley.toml")
+
+
+def test_sweep_columns_of_the_operating_point(tmp_path):
+    """A sweep of a loaded drive reports the operating point (tensions, drive torque, the arcs'
+    friction and slip margins) case by case, equal to the statics of each case."""
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('outputs = ["statics"]\n[[grid]]\nparameter = "belt.static_tension"\nvalues = [150.0, 300.0]\n')
+    (tmp_path / "fead.toml").write_text(FEAD)
+    assert main(["sweep", str(tmp_path / "fead.toml"), str(sweep), "--out", str(tmp_path / "out")]) == 0
+    import csv
+
+    rows = list(csv.DictReader(open(tmp_path / "out" / "sweep.csv")))
+    for row in rows:
+        sc = loads_scene(FEAD.replace("static_tension = 300.0", f"static_tension = {row['belt.static_tension']}"))
+        r = statics.analyse_statics(sc)
+        assert float(row["drive_torque_Nm"]) == pytest.approx(r.drive_torque_Nm, rel=1e-8)
+        assert float(row["tension_crank-ac_N"]) == pytest.approx(r.span_tensions_N[0], rel=1e-8)
+        for name, v in r.friction.items():
+            assert float(row[f"slip_margin_{name}"]) == pytest.approx(v["slip_margin"], rel=1e-6, abs=1e-9)
+        assert float(row["min_slip_margin"]) == pytest.approx(min(v["slip_margin"] for v in r.friction.values()))
+    assert float(rows[0]["min_slip_margin"]) < 0 < float(rows[1]["min_slip_margin"])  # 150 N slips at the crank
+
+
+def test_optimize_with_a_minimum_slip_margin(tmp_path):
+    """The lowest crank hub load (lowest installation tension) that keeps every arc's slip
+    margin at 0.3: the constraint ends active, and the statics of the result agree."""
+    (tmp_path / "fead.toml").write_text(FEAD)
+    opt = tmp_path / "opt.toml"
+    opt.write_text('steps = 150\nlearning_rate = 0.02\n[[variable]]\nparameter = "belt.static_tension"\nlower = 150\n'
+                   'upper = 400\n[[objective]]\nkind = "hub_load"\npulley = "crank"\nweight = 0.001\n'
+                   '[[constraint]]\nkind = "min_slip_margin"\nvalue = 0.3\n')
+    assert main(["optimize", str(tmp_path / "fead.toml"), str(opt), "--out", str(tmp_path / "out")]) == 0
+    data = json.loads((tmp_path / "out" / "optimize.json").read_text())
+    assert data["all_constraints_satisfied"] and data["goal_met"]
+    r = statics.analyse_statics(load_scene(tmp_path / "out" / "optimized_scene.toml"))
+    margin = min(v["slip_margin"] for v in r.friction.values())
+    assert 0.3 - 0.005 <= margin < 0.31  # active within the constraint's tolerance
+    assert r.installation_tension_N < 300.0

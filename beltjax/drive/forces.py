@@ -109,6 +109,12 @@ def mean_body_loads(scene: Scene, inst: Installation, speed=0.0):
     return effects_of(scene).body_forces(f, None, rates, scene, None)
 
 
+def lasting_loads(scene: Scene) -> bool:
+    """Whether the scene's structure has loads that last (a [[torque]] without ``t_end_s``, or
+    listed bearing damping): whatever their values, its operating point is solved for them."""
+    return any(load.t_end_s is None for load in scene.torques) or "bearing_damping" in effects_of(scene)
+
+
 def has_mean_loads(scene: Scene) -> bool:
     """Whether the scene's operating point differs from its unloaded state: a lasting [[torque]]
     with a mean, or listed bearing damping."""

@@ -42,6 +42,9 @@ the optimisation (the result is checked with the scene's own mesh at the end);
     kind = "min_wrap_deg"                # wrap angle >= value on one pulley (key pulley) or on all
     value = 150
     [[constraint]]
+    kind = "min_slip_margin"             # slip margin 1 - mu_needed / mu' at the operating point >= value
+    value = 0.2                          # (capstan law; one pulley with key pulley, else every arc)
+    [[constraint]]
     kind = "static_tension"              # min <= span tension <= max (N), every span or key span
     min = 300
     max = 700

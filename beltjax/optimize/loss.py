@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, drive_modal, parameters, statics
+from beltjax import critical, drive, drive_modal, friction, parameters, statics
 from beltjax.scene import Scene
 from beltjax.optimize import modes
 from beltjax.optimize.problem import _UNIT, SOFT_HZ, Constraint, Problem, _band_starts, _bands, _pairs, sample_rpm
@@ -85,6 +85,13 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
           & jnp.all((inst.wrap > 0) & (inst.wrap < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0)
           & jnp.all(force > 0))
     finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in m.values()]))
+    if any(c.kind == "min_slip_margin" for c in problem.constraints):
+        # the operating point under the mean loads, and its arcs' slip margins (capstan law)
+        q_op, _, i_op = statics.equilibrium(sc, inst, speed=v0, loaded=True)
+        f_op = critical.span_forces(sc, q_op, inst, v0)
+        need = friction.demand(jnp.maximum(f_op, 1e-9), inst.wrap)
+        m["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))[np.asarray(friction.given(sc))]
+        ok = ok & (i_op[0] > 0.5) & jnp.all(f_op > 0) & jnp.all(jnp.isfinite(m["slip_margins"]))
     m["inst"] = inst
     m["feasible"] = ok & finite
     return m
@@ -156,6 +163,11 @@ def _violations(c: Constraint, m: dict, scene: Scene, xp=jnp):
         return xp.maximum(c.lower - w, 0.0), xp.min(w)
     if c.kind == "no_overlap":
         return xp.maximum(c.lower - m["gaps_m"], 0.0), xp.min(m["gaps_m"])
+    if c.kind == "min_slip_margin":
+        s = m["slip_margins"]
+        if c.where is not None:
+            s = s[[scene.route.order[i] for i in friction.given(scene)].index(c.where)][None]
+        return xp.maximum(c.lower - s, 0.0), xp.min(s)
     if c.kind == "static_tension":
         v = m["tensions_N"] if c.where is None else m["tensions_N"][scene.route.span_names.index(c.where)][None]
     else:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from beltjax import drive, parameters, textfile, tomltable
+from beltjax import drive, friction, parameters, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.scene import MAX_ELEMENTS_PER_SPAN, Scene
 from beltjax.tomltable import describe
@@ -18,11 +18,13 @@ MAX_STARTS = 16
 #: temperature (Hz) of the log-sum-exp maximum over the sampled speeds
 SOFT_HZ = 0.5
 OBJECTIVES = ("resonance_band", "hub_load")
-CONSTRAINTS = ("min_wrap_deg", "static_tension", "arm_angle_deg", "no_overlap")
+CONSTRAINTS = ("min_wrap_deg", "static_tension", "arm_angle_deg", "no_overlap", "min_slip_margin")
 #: penalty unit and default tolerance of each constraint kind (its own units)
-_UNIT = {"min_wrap_deg": 1.0, "static_tension": 10.0, "arm_angle_deg": 1.0, "no_overlap": 1e-3}
-_TOLERANCE = {"min_wrap_deg": 0.5, "static_tension": 2.0, "arm_angle_deg": 0.2, "no_overlap": 2e-4}
-_UNIT_NAME = {"min_wrap_deg": "deg", "static_tension": "N", "arm_angle_deg": "deg", "no_overlap": "m"}
+_UNIT = {"min_wrap_deg": 1.0, "static_tension": 10.0, "arm_angle_deg": 1.0, "no_overlap": 1e-3, "min_slip_margin": 0.02}
+_TOLERANCE = {"min_wrap_deg": 0.5, "static_tension": 2.0, "arm_angle_deg": 0.2, "no_overlap": 2e-4,
+              "min_slip_margin": 0.005}
+_UNIT_NAME = {"min_wrap_deg": "deg", "static_tension": "N", "arm_angle_deg": "deg", "no_overlap": "m",
+              "min_slip_margin": "-"}
 _TOP_KEYS = ("steps", "learning_rate", "tolerance", "patience", "min_steps", "starts", "elements_per_span",
              "description", "variable", "objective", "constraint")
 _VARIABLE_KEYS = ("parameter", "lower", "upper", "scale")
@@ -35,6 +37,7 @@ _CONSTRAINT_KEYS = {
     "static_tension": ("kind", "min", "max", "span", "weight", "tolerance"),
     "arm_angle_deg": ("kind", "min", "max", "weight", "tolerance"),
     "no_overlap": ("kind", "clearance", "weight", "tolerance"),
+    "min_slip_margin": ("kind", "value", "pulley", "weight", "tolerance"),
 }
 
 
@@ -207,6 +210,17 @@ def _parse_constraint(d, i: int, scene: Scene) -> Constraint:
         return Constraint(kind, value, None, weight, tol, _route_entry(t, "pulley", scene, False))
     if kind == "no_overlap":
         return Constraint(kind, t.number("clearance", required=False, default=0.0, nonnegative=True), None, weight, tol)
+    if kind == "min_slip_margin":
+        value = t.number("value", required=False, default=0.0)
+        if not -1 < value < 1:
+            t.fail("value", f"a slip margin 1 - mu_needed / mu' lies in (-inf, 1]: ask for one in (-1, 1), got {value!r}")
+        where = _route_entry(t, "pulley", scene, False)
+        given = [scene.route.order[i] for i in friction.given(scene)]
+        if not given:
+            t.fail("kind", "the scene gives no friction coefficient (belt.friction_coefficient or a pulley's)")
+        if where is not None and where not in given:
+            t.fail("pulley", f"{where!r} has no friction coefficient in the scene")
+        return Constraint(kind, value, None, weight, tol, where)
     if kind == "arm_angle_deg" and scene.tensioner is None:
         t.fail("kind", "the scene has no tensioner")
     lo, hi = t.number("min", required=False), t.number("max", required=False)

@@ -25,8 +25,8 @@ def constraint_report(m: dict, scene: Scene, problem: Problem) -> list[dict]:
     tolerance, from :func:`measures`-like numpy values ``m``."""
     out = []
     for j, c in enumerate(problem.constraints):
-        viol, value = _violations(c, {k: np.asarray(m[k]) for k in ("wrap_deg", "tensions_N", "arm_deg", "gaps_m")},
-                                  scene, np)
+        keys = ("wrap_deg", "tensions_N", "arm_deg", "gaps_m", "slip_margins")
+        viol, value = _violations(c, {k: np.asarray(m[k]) for k in keys if k in m}, scene, np)
         worst = float(np.max(viol)) if np.size(viol) else 0.0
         value = [float(v) for v in value] if isinstance(value, tuple) else float(value)
         out.append(dict(constraint=j, kind=c.kind, where=c.where, lower=c.lower, upper=c.upper,
@@ -41,6 +41,8 @@ def _describe_constraint(c: dict) -> str:
         return f"wrap {c['where'] or 'every pulley'} >= {c['lower']:g} {u}"
     if c["kind"] == "no_overlap":
         return f"clearance between pulleys >= {c['lower']:g} {u}"
+    if c["kind"] == "min_slip_margin":
+        return f"slip margin {c['where'] or 'every arc'} >= {c['lower']:g} (operating point, capstan law)"
     what = "span tension" + (f" {c['where']}" if c["where"] else "") if c["kind"] == "static_tension" else "arm angle"
     lo = "" if c["lower"] is None else f"{c['lower']:g} <= "
     hi = "" if c["upper"] is None else f" <= {c['upper']:g}"

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, drive_modal, mode_tracking, parameters, statics, sweep_modes, validate
+from beltjax import critical, drive, drive_modal, friction, mode_tracking, parameters, statics, sweep_modes, validate
 from beltjax.scene import Scene
 from beltjax.sweep.spec import CAMPBELL_CHUNK_POINTS, MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
 from beltjax.drive.effects import effects_of
@@ -40,7 +40,10 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     span_tensions_N (N), hub_forces_N (N, magnitudes), installation_tension_N (N),
     belt_length_m (m), tensioner_angle_deg (deg), spring_moment_Nm (N m), converged;
     frequencies_hz (Hz, NaN when unstable), stable; campbell_hz (Hz, per ``rpm`` speed),
-    campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt).  With
+    campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt), at the
+    operating point when the scene has lasting loads (:func:`beltjax.drive.lasting_loads`;
+    then also drive_torque_Nm, friction_needed and slip_margins per route entry, NaN where no
+    friction coefficient is given), the modes about the unloaded state (as ``beltjax modal``).  With
     ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
     tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
     campbell_owner (the frequencies are then the lowest ``track``, sorted).
@@ -50,11 +53,18 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     v = drive.belt_speed(sc)
     qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps)
     out = statics.static_outputs(sc, qi, inst, v)
+    loaded = "statics" in outputs and drive.lasting_loads(sc)
+    q_out = qi
+    if loaded:  # the operating point under the mean loads
+        q_out, _, (conv_op, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps, loaded=True)
+        out = statics.static_outputs(sc, q_out, inst, v, loaded=True)
+        conv = jnp.minimum(conv, conv_op)
     faults = statics.installation_faults(sc, inst)
     names = ["no_arm_balance", "belt_slack", "belt_overstretched"]
     conds = [faults[k] for k in names]
     codes = [_CODE[k] for k in names]
-    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0),
+              critical.supercritical(sc, qi, inst, v) | critical.supercritical(sc, q_out, inst, v)]
     codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
     res: dict[str, jax.Array] = {}
     if "statics" in outputs:
@@ -64,6 +74,11 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         if sc.tensioner is not None:
             res["spring_moment_Nm"] = drive.spring_moment(out["theta"], sc)
         res["converged"] = conv > 0.5
+        if loaded:
+            need = friction.demand(jnp.maximum(critical.span_forces(sc, q_out, inst, v), 1e-9), inst.wrap)
+            res["drive_torque_Nm"] = out["drive_torque"]
+            res["friction_needed"] = need
+            res["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))
     res["installation_tension_N"] = inst.tension  # evaluate checks each case's solved installation
     if sc.tensioner is not None:
         res["tensioner_angle_deg"] = jnp.rad2deg(out["theta"])

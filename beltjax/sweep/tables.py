@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from beltjax import drive
+from beltjax import drive, friction
 from beltjax.scene import Scene
 from beltjax.sweep.spec import REASONS, STATUS, Spec, _CODE, nominal_value
 
@@ -29,9 +29,18 @@ def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndar
             cols[f"tension_{name}_N"] = result["span_tensions_N"][:, j]
         for j, name in enumerate(scene.route.order):
             cols[f"hub_{name}_N"] = result["hub_forces_N"][:, j]
-        for k in ("installation_tension_N", "belt_length_m", "tensioner_angle_deg", "spring_moment_Nm", "converged"):
+        for k in ("installation_tension_N", "belt_length_m", "tensioner_angle_deg", "spring_moment_Nm", "converged",
+                  "drive_torque_Nm"):
             if k in result:
                 cols[k] = result[k]
+        if "friction_needed" in result:  # the operating point's arcs (capstan law)
+            given = friction.given(scene)
+            for j, name in enumerate(scene.route.order):
+                cols[f"friction_needed_{name}"] = result["friction_needed"][:, j]
+                if j in given:
+                    cols[f"slip_margin_{name}"] = result["slip_margins"][:, j]
+            if given:
+                cols["min_slip_margin"] = np.min(result["slip_margins"][:, given], axis=1)
     if "frequencies_hz" in result:
         for m in range(result["frequencies_hz"].shape[1]):
             cols[f"f{m + 1}_hz"] = result["frequencies_hz"][:, m]
