@@ -39,6 +39,7 @@ import numpy as np
 from beltjax import schema, validate
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
+from beltjax.drive.effects import effects_of
 
 _COMPONENTS = {"x": 0, "y": 1}
 _VECTORS = {"pulley": ("center", "cm_offset"), "tensioner": ("pivot",)}
@@ -133,7 +134,7 @@ def check(scene: Scene, path: str) -> str:
     if name not in ("static_tension", "length") and getattr(owner(scene), name) is None:
         raise ParameterError("this parameter is not set in the scene (give it in the scene file first)", path)
     f = schema.field(path)
-    if f is not None and f.effect and f.effect not in scene.model.effects:
+    if f is not None and f.effect and f.effect not in effects_of(scene):
         raise ParameterError(f"belongs to the effect \"{f.effect}\", which model.effects does not list: it "
                              "would change nothing", path)
     return path

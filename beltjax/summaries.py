@@ -168,7 +168,8 @@ def simulation_table(res, summary) -> str:
         if name not in summary["channels"]:
             continue
         for col, st in summary["channels"][name].items():
-            label = f"{name.rsplit('_', 1)[0].replace('_', ' ')}: {col}" if col != name else name
+            stem = "slip margin" if name == "slip_margins" else name.rsplit('_', 1)[0].replace('_', ' ')
+            label = f"{stem}: {col}" if col != name else name
             dom = ", ".join(f"{f:.4g}" for f in st["dominant_hz"]) or "-"
             rows.append((" ".join(label.split()), st, dom, units[name]))
     width = max([len("channel")] + [len(r[0]) for r in rows])  # the longest channel name, never cut

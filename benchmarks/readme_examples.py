@@ -56,6 +56,10 @@ EXAMPLES: dict[str, tuple[str, dict[str, str]]] = {
                                   "layout_before.png": "optimize_layout_before.png",
                                   "layout_after.png": "optimize_layout_after.png",
                                   "history.png": "optimize_history.png"}),
+    "statics_fead": ("statics scenes/fead_8pulley.toml", {"layout.png": "layout_fead_8pulley.png"}),
+    "campbell_fead": ("campbell scenes/fead_8pulley.toml --rpm 600:6000:100",
+                      {"campbell.png": "campbell_fead_8pulley.png"}),
+    "simulate_fead": ("simulate scenes/fead_8pulley.toml --t-end 1", {}),
     "span_bench": ("span --length 0.67143 --tension 100.5 --EA 111190 --EI 0.034 --rhoA 0.12166 --elements 16",
                    {"span_modes.png": "span_modes_bench.png"}),
 }
