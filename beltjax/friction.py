@@ -64,19 +64,45 @@ def margins(needed, available):
     return 1.0 - needed / available
 
 
-def assess(scene: Scene, forces, wrap) -> dict:
-    """Per route entry: wrap (deg), friction needed, available (None if not given) and slip margin
-    (None if not given), for a steady state whose spans pull the pulleys with ``forces`` (N)."""
+def sliding_arcs(needed, wrap, available):
+    """Sliding arc of each wrap (rad) by classical creep theory (Grashof, Reynolds): the belt
+    slides over the part of the arc where its tension changes, ln(F_out / F_in) / mu' =
+    wrap mu_needed / mu' (the rest, from the entry, adheres); the whole wrap at or past the
+    capstan limit.  NaN where mu' is not given."""
+    return jnp.minimum(needed * wrap / available, wrap)
+
+
+def creep_speed_loss(stretches, drive_index: int):
+    """Speed lost to creep (-) per route entry, relative to the drive pulley, by classical creep
+    theory: a pulley turns with the belt where it adheres, at the entry of its wrap, so its rim
+    runs at the arriving span's speed, c lam_in (c: the belt's unstretched flow, lam_in: that
+    span's stretch); 1 - lam_in / lam_in(drive pulley), e.g. 1 - (1 + eps_slack) / (1 + eps_tight)
+    for the driven pulley of a two-pulley drive.  stretches: each span's stretch (-), route order
+    (span i leaves entry i) along the last axis."""
+    lam_in = jnp.roll(jnp.asarray(stretches), 1, axis=-1)
+    return 1.0 - lam_in / lam_in[..., drive_index : drive_index + 1]
+
+
+def assess(scene: Scene, forces, wrap, stretches=None, drive_index: int = 0) -> dict:
+    """Per route entry, for a steady state whose spans pull the pulleys with ``forces`` (N):
+    wrap (deg), friction needed, available (None if not given), slip margin and sliding arc
+    (deg; None if no coefficient is given), and, with the spans' ``stretches`` (-), the creep
+    speed loss relative to the drive pulley (route index ``drive_index``)."""
     need = np.asarray(demand(forces, np.asarray(wrap)))
     have = np.asarray(effective_coefficients(scene))
     margin = np.asarray(margins(need, have))
+    arcs = np.degrees(np.asarray(sliding_arcs(need, np.asarray(wrap), have)))
+    loss = None if stretches is None else np.asarray(creep_speed_loss(stretches, drive_index))
     out = {}
     for i, name in enumerate(scene.route.order):
+        given = not np.isnan(have[i])
         out[name] = dict(
             wrap_deg=float(np.degrees(wrap[i])),
             friction_needed=float(need[i]),
-            friction_available=None if np.isnan(have[i]) else float(have[i]),
-            slip_margin=None if np.isnan(have[i]) else float(margin[i]),
+            friction_available=float(have[i]) if given else None,
+            slip_margin=float(margin[i]) if given else None,
+            sliding_arc_deg=float(arcs[i]) if given else None,
+            creep_speed_loss=None if loss is None else float(loss[i]),
         )
     return out
 

@@ -185,7 +185,9 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool) -> S
         state="operating point" if loaded else "unloaded",
         drive_torque_Nm=float(out["drive_torque"]),
         loads_Nm={bodies[i]: float(loads[i]) for i in range(len(bodies)) if loads[i] != 0.0},
-        friction=friction.assess(scene, forces, np.asarray(inst.wrap)),
+        friction=friction.assess(scene, forces, np.asarray(inst.wrap),
+                                 np.asarray(critical.span_stretches(scene, inst, out["lengths"])),
+                                 drive.drive_pulley(scene)),
     )
     worst = max(res.friction, key=lambda k: np.nan_to_num(res.friction[k]["friction_needed"]))
     need = res.friction[worst]["friction_needed"]

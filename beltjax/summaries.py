@@ -64,11 +64,14 @@ def statics_table(res) -> str:
     if res.state == "operating point":
         lines += ["", f"drive torque (on the drive pulley, CCW +): {res.drive_torque_Nm:.4g} N m"]
     if any(v["friction_needed"] > 1e-9 for v in res.friction.values()):
-        lines += ["", f"{'arc (capstan law)':<26} {'mu needed':>10} {'mu avail.':>10} {'slip margin':>12}"]
+        lines += ["", f"{'arc (capstan law)':<26} {'mu needed':>10} {'mu avail.':>10} {'slip margin':>12} "
+                      f"{'sliding [deg]':>14} {'creep loss':>11}"]
         for name, v in res.friction.items():
             have = "-" if v["friction_available"] is None else f"{v['friction_available']:.3f}"
             margin = "-" if v["slip_margin"] is None else f"{v['slip_margin']:+.3f}"
-            lines.append(f"{name:<26} {v['friction_needed']:>10.3f} {have:>10} {margin:>12}"
+            arc = "-" if v["sliding_arc_deg"] is None else f"{v['sliding_arc_deg']:.1f}"
+            creep = "-" if v["creep_speed_loss"] is None else f"{100 * v['creep_speed_loss']:.3f} %"
+            lines.append(f"{name:<26} {v['friction_needed']:>10.3f} {have:>10} {margin:>12} {arc:>14} {creep:>11}"
                          + ("  SLIPS" if v["slip_margin"] is not None and v["slip_margin"] < 0 else ""))
     lines.append(f"Newton iterations: {res.iterations}")
     return "\n".join(lines)

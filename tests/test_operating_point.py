@@ -267,3 +267,24 @@ def test_optimize_with_a_minimum_slip_margin(tmp_path):
     margin = min(v["slip_margin"] for v in r.friction.values())
     assert 0.3 - 0.005 <= margin < 0.31  # active within the constraint's tolerance
     assert r.installation_tension_N < 300.0
+
+
+def test_creep_speed_ratio_and_sliding_arc_by_classical_theory():
+    """Below the capstan limit: the driven pulley's speed ratio is (1 + eps_slack) / (1 + eps_tight)
+    (its rim runs with the slack belt arriving, the driver's with the tight one), and the belt
+    slides over ln(F_tight / F_slack) / mu' of each wrap."""
+    from beltjax import span
+
+    mu = 0.4
+    sc = loads_scene(_two_pulley("rotational", extra_belt=f"friction_coefficient = {mu}"))
+    r = statics.analyse_statics(sc)
+    EA = float(sc.belt.EA)
+    lam_slack, lam_tight = (float(span.stretch_for_tension(T, EA)) for T in r.span_tensions_N)
+    f = r.friction
+    assert f["crank"]["creep_speed_loss"] == 0.0  # the drive pulley is the reference
+    assert 1 - f["alternator"]["creep_speed_loss"] == pytest.approx(lam_slack / lam_tight, rel=1e-9)
+    F = r.span_forces_N
+    arc = math.degrees(math.log(F[1] / F[0]) / mu)
+    assert f["crank"]["sliding_arc_deg"] == pytest.approx(arc, rel=1e-9)
+    assert f["alternator"]["sliding_arc_deg"] == pytest.approx(arc, rel=1e-9)
+    assert arc < min(v["wrap_deg"] for v in f.values())
