@@ -221,9 +221,11 @@ def at_speed(scene: Scene, speed, inst=None, steps: int = 1, gyroscopic: bool | 
     from rest; gyroscopic: whether G enters the eigen-problem (default: the belt moves, i.e.
     ``transport`` is listed).  With ``track`` = k > 0 the lowest k modes come from the tracking
     eigen-solver with their shapes (:func:`tracking_shapes`, ``full`` as there) in ``tracking``,
-    and M, G, K are None.  Pure, vmappable, differentiable (statics by implicit
+    and M, G, K are None.  The linearisation is about the operating point when the scene has
+    lasting loads (:func:`beltjax.drive.lasting_loads`: the mean loads at this speed), else about
+    the unloaded state.  Pure, vmappable, differentiable (statics by implicit
     differentiation, symmetric eigenvalues)."""
-    qi, inst, info = statics.equilibrium(scene, inst, speed=speed, steps=steps)
+    qi, inst, info = statics.equilibrium(scene, inst, speed=speed, steps=steps, loaded=drive.lasting_loads(scene))
     sup = critical.supercritical(scene, qi, inst, speed)
     if track:
         t = tracking_shapes(scene, qi, inst, speed, track, _gyroscopic(scene, gyroscopic), full=full)

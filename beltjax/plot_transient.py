@@ -10,8 +10,10 @@ with a note in the legend.
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from beltjax import plotting
+
 from beltjax.plotting import colormap, coinciding, literal, literal_wrapped, overlay_style, subplots
 
 # channel -> (panel label, default unit, factor to the plotted unit, plotted unit), in the preferred order
@@ -72,6 +74,12 @@ def _legend(ax, n):
                   ncol=1 + (n - 1) // 16, handlelength=1.8)
 
 
+#: a channel with more lines than this is drawn as small multiples, one panel per line
+MAX_OVERLAID = 4
+#: small panels per row
+_SMALL_PER_ROW = 4
+
+
 def plot_simulation(t, channels, columns, units, path, *, title=""):
     """Save stacked time histories of a transient simulation (PNG), one panel per channel.
 
@@ -79,34 +87,65 @@ def plot_simulation(t, channels, columns, units, path, *, title=""):
     (x solid, y dashed); columns: name -> column labels (span, pulley or node names);
     units: name -> unit string (defaults from the channel name).  Panels, in this order,
     for the channels present: span_tensions_N, span_forces_N, hub_force_magnitudes_N,
-    pulley_speeds_rpm, arm_angle_deg, spring_moment_Nm, drive_torques_Nm and
-    node_displacements_m (drawn in mm).  At most about 20000 points per line (strided).
+    pulley_speeds_rpm, arm_angle_deg, spring_moment_Nm, drive_torques_Nm,
+    node_displacements_m (drawn in mm) and slip_margins.  A channel of more than
+    :data:`MAX_OVERLAID` lines (a drive of many spans or pulleys) is drawn as small multiples,
+    one panel per line, 4 to a row, each with its own scale.  At most about 20000 points per
+    line (strided).
     """
     t = np.asarray(t, dtype=float)
     names = [n for n in _SIM_CHANNELS if n in channels and channels[n] is not None]
     stride = max(1, int(np.ceil(t.size / _MAX_POINTS)))
-    n = max(len(names), 1)
-    fig, axes = subplots(n, 1, figsize=(11, 1.2 + 2.2 * n), sharex=True, squeeze=False)
-    axes = axes[:, 0]
+    blocks = []  # (name, lines) per channel
+    for name in names:
+        _, default, _, _ = _SIM_CHANNELS[name]
+        _, scale, _ = _channel_unit(name, units, default)
+        blocks.append((name, [(lab, scale * y[::stride], c, ls)
+                              for lab, y, c, ls in _channel_lines(name, channels[name], columns)]))
+    rows = [1 if len(lines) <= MAX_OVERLAID else -(-len(lines) // _SMALL_PER_ROW) for _, lines in blocks]
+    n = max(sum(rows), 1)
+    fig = Figure(figsize=(11, 1.2 + 2.2 * n))
+    grid = fig.add_gridspec(n, _SMALL_PER_ROW)
+    first = None
     if not names:
-        axes[0].text(0.5, 0.5, "no channels to plot", ha="center", va="center", transform=axes[0].transAxes,
-                     fontsize=12, color="crimson")
-    for ax, name in zip(axes, names):
+        ax = fig.add_subplot(grid[0, :])
+        ax.text(0.5, 0.5, "no channels to plot", ha="center", va="center", transform=ax.transAxes,
+                fontsize=12, color="crimson")
+    row, bottom = 0, []
+    for (name, lines), k in zip(blocks, rows):
         label, default, _, _ = _SIM_CHANNELS[name]
-        _, scale, shown = _channel_unit(name, units, default)
-        lines = [(lab, scale * y[::stride], c, ls) for lab, y, c, ls in _channel_lines(name, channels[name], columns)]
-        _draw(ax, t[::stride], lines, 1.0)
-        ax.set_ylabel(f"{label} ({shown})", fontsize=9)
-        ax.tick_params(labelsize=8)
-        ax.grid(alpha=0.3)
-        _legend(ax, len(lines))
-    axes[-1].set_xlabel("time (s)")
-    if t.size:
-        axes[-1].set_xlim(float(t[0]), float(t[-1]))
+        _, _, shown = _channel_unit(name, units, default)
+        if len(lines) <= MAX_OVERLAID:
+            panels = [(fig.add_subplot(grid[row, :], sharex=first), lines)]
+        else:
+            panels = [(fig.add_subplot(grid[row + j // _SMALL_PER_ROW, j % _SMALL_PER_ROW], sharex=first), [line])
+                      for j, line in enumerate(lines)]
+        for j, (ax, group) in enumerate(panels):
+            first = first or ax
+            _draw(ax, t[::stride], group, 1.0)
+            ax.tick_params(labelsize=8)
+            ax.grid(alpha=0.3)
+            if len(panels) == 1:
+                ax.set_ylabel(f"{label} ({shown})", fontsize=9)
+                _legend(ax, len(group))
+            else:
+                ax.set_title(literal(group[0][0], 40), fontsize=8)
+                if j % _SMALL_PER_ROW == 0:
+                    ax.set_ylabel(f"{label} ({shown})", fontsize=8)
+        row += k
+        last_row = (len(panels) - 1) // _SMALL_PER_ROW
+        bottom = [ax for j, (ax, _) in enumerate(panels) if j // _SMALL_PER_ROW == last_row]
+    for ax in fig.axes:
+        if ax not in bottom and names:
+            ax.tick_params(labelbottom=False)
+    for ax in bottom:
+        ax.set_xlabel("time (s)")
+    if t.size and first is not None:
+        first.set_xlim(float(t[0]), float(t[-1]))
     head = literal_wrapped(title, 110)
     note = f" (every {stride}th sample drawn)" if stride > 1 else ""
     fig.suptitle((head + "\n" if head else "") + f"time histories, {t.size} samples{note}", fontsize=10)
-    plotting.save(fig, path, dpi=120)
+    plotting.save(fig, path, dpi=120, top_in=0.55 if any(k > 1 or len(b[1]) > MAX_OVERLAID for k, b in zip(rows, blocks)) else None)
 
 
 def _envelope(f, a, max_points=_MAX_POINTS):

@@ -70,13 +70,17 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize, **kwargs):
     return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
-def save(fig, path, dpi: int = 110) -> None:
+def save(fig, path, dpi: int = 110, top_in: float | None = None) -> None:
     """Lay ``fig`` out (tight) and write it to ``path`` (PNG).  A character the font lacks
-    (e.g. CJK in DejaVu Sans) is drawn as a box without a warning per glyph."""
+    (e.g. CJK in DejaVu Sans) is drawn as a box without a warning per glyph.  top_in: room (in)
+    kept above the axes for a figure title (default: tight_layout's own)."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Glyph .* missing from", category=UserWarning)
         warnings.filterwarnings("ignore", message="Tight layout not applied", category=UserWarning)
-        fig.tight_layout()
+        if top_in is None:
+            fig.tight_layout()
+        else:
+            fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - top_in / fig.get_figheight()))
         fig.savefig(path, dpi=dpi)
 
 

@@ -59,7 +59,8 @@ EXAMPLES: dict[str, tuple[str, dict[str, str]]] = {
     "statics_fead": ("statics scenes/fead_8pulley.toml", {"layout.png": "layout_fead_8pulley.png"}),
     "campbell_fead": ("campbell scenes/fead_8pulley.toml --rpm 600:6000:100",
                       {"campbell.png": "campbell_fead_8pulley.png"}),
-    "simulate_fead": ("simulate scenes/fead_8pulley.toml --t-end 1", {}),
+    "simulate_fead": ("simulate scenes/fead_8pulley.toml --t-end 1",
+                      {"simulation.png": "simulation_fead_8pulley.png"}),
     "span_bench": ("span --length 0.67143 --tension 100.5 --EA 111190 --EI 0.034 --rhoA 0.12166 --elements 16",
                    {"span_modes.png": "span_modes_bench.png"}),
 }

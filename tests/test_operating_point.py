@@ -288,3 +288,19 @@ def test_creep_speed_ratio_and_sliding_arc_by_classical_theory():
     assert f["crank"]["sliding_arc_deg"] == pytest.approx(arc, rel=1e-9)
     assert f["alternator"]["sliding_arc_deg"] == pytest.approx(arc, rel=1e-9)
     assert arc < min(v["wrap_deg"] for v in f.values())
+
+
+def test_modes_are_about_the_operating_point():
+    """Modal analysis, Campbell diagrams, sweeps and optimisation linearise about the operating
+    point of a loaded drive (one pipeline, drive_modal.at_speed): beltjax modal agrees with it,
+    and the loads move the modes away from the unloaded state's."""
+    from beltjax import drive_modal
+
+    sc = drive.canonical(loads_scene(FEAD))
+    v = float(drive.belt_speed(sc))
+    m = drive_modal.analyse_modes(sc)
+    a = drive_modal.at_speed(sc, v)
+    assert np.allclose(m.frequencies_hz, np.asarray(a.freqs), rtol=1e-6)
+    qi, inst, _ = statics.equilibrium(sc, speed=v)  # unloaded
+    _, f0, *_ = drive_modal.frequencies_about(sc, qi, inst, v)
+    assert np.max(np.abs(np.asarray(f0) / np.asarray(a.freqs) - 1)) > 1e-3

@@ -46,9 +46,9 @@ def figures(monkeypatch):
     saved = []
     real = plotting.save
 
-    def keep(fig, path, dpi=110):
+    def keep(fig, path, dpi=110, **kwargs):
         saved.append(fig)
-        real(fig, path, dpi)
+        real(fig, path, dpi, **kwargs)
 
     monkeypatch.setattr(plotting, "save", keep)
     return saved
@@ -228,6 +228,23 @@ def test_time_history_coinciding_curves_and_hostile_columns(tmp_path, figures):
     assert entries[1].endswith(f"(on {plotting.literal(CRANK, 50)})")
     assert hub.lines[0].get_linestyle() == "-" and hub.lines[1].get_linestyle() != "-"
     assert CRANK in "\n".join(_texts(fig))
+
+
+def test_many_spans_are_drawn_as_small_multiples(tmp_path, figures):
+    """Eight span tensions are not overlaid in one panel: one small panel each, titled by its span,
+    four to a row; a channel of few lines keeps one panel with a legend."""
+    t = np.linspace(0.0, 1.0, 200)
+    spans = [f"s{i}-s{i + 1}" for i in range(8)]
+    channels = {"span_tensions_N": np.stack([300 + i * 20 + 5 * np.sin(10 * t + i) for i in range(8)], axis=1),
+                "arm_angle_deg": 60 + np.sin(5 * t)}
+    plotting.plot_simulation(t, channels, {"span_tensions_N": spans}, {}, tmp_path / "sim.png", title="eight spans")
+    (fig,) = figures
+    titled = [ax for ax in fig.axes if ax.get_title() in spans]
+    assert [ax.get_title() for ax in titled] == spans and all(len(ax.lines) == 1 for ax in titled)
+    assert titled[0].get_ylabel() == "span tension (N)" and titled[4].get_ylabel() == "span tension (N)"
+    arm = [ax for ax in fig.axes if ax.get_ylabel().startswith("tensioner arm angle")]
+    assert len(arm) == 1 and len(fig.axes) == 9
+    assert all(ax.get_xlabel() == "time (s)" for ax in [arm[0]])
 
 
 # --------------------------------------------------------------------------- the summary table

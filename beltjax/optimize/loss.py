@@ -36,8 +36,11 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     mode there, :mod:`beltjax.optimize.modes`; 1 when no objective watches "span"), good (S,)
     (equilibrium converged and stable); span_force_N (S + 1, n): each span's force on the
     pulleys, tension - rhoA c^2 lam (:func:`beltjax.critical.span_forces`), at the scene's own
-    speed and each speed of ``rpm``; feasible: belt fitted, every equilibrium converged and
-    stable, every span force positive (no span past its critical speed), everything finite.
+    speed and each speed of ``rpm``; with a min_slip_margin constraint, slip_margins (one per
+    route entry with a friction coefficient); feasible: belt fitted, every equilibrium
+    converged and stable, every span force positive (no span past its critical speed),
+    everything finite.  Every state is the operating point when the scene has lasting loads
+    (:func:`beltjax.drive.lasting_loads`), else the unloaded state.
     """
     rpm = jnp.asarray(sample_rpm(problem) if rpm is None else rpm, dtype=jnp.float64)
     sc = parameters.set_values(scene, dict(zip(problem.paths, x)))
@@ -47,8 +50,10 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     span = _watches_span(problem)
     v_rigid = drive_modal.rigid_mode(sc, inst)
 
+    loaded = drive.lasting_loads(sc)  # the operating point under the mean loads
+
     def at(v):
-        qv, _, iv = statics.equilibrium(sc, inst, speed=v)
+        qv, _, iv = statics.equilibrium(sc, inst, speed=v, loaded=loaded)
         force = critical.span_forces(sc, qv, inst, v)  # <= 0: at or past the critical speed
         if rpm.shape[0] == 0:
             return qv, jnp.zeros(0), jnp.zeros(0), iv[0] > 0.5, force
@@ -85,13 +90,10 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
           & jnp.all((inst.wrap > 0) & (inst.wrap < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0)
           & jnp.all(force > 0))
     finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in m.values()]))
-    if any(c.kind == "min_slip_margin" for c in problem.constraints):
-        # the operating point under the mean loads, and its arcs' slip margins (capstan law)
-        q_op, _, i_op = statics.equilibrium(sc, inst, speed=v0, loaded=True)
-        f_op = critical.span_forces(sc, q_op, inst, v0)
-        need = friction.demand(jnp.maximum(f_op, 1e-9), inst.wrap)
+    if any(c.kind == "min_slip_margin" for c in problem.constraints):  # the arcs' slip margins (capstan law)
+        need = friction.demand(jnp.maximum(force[0], 1e-9), inst.wrap)
         m["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))[np.asarray(friction.given(sc))]
-        ok = ok & (i_op[0] > 0.5) & jnp.all(f_op > 0) & jnp.all(jnp.isfinite(m["slip_margins"]))
+        ok = ok & jnp.all(jnp.isfinite(m["slip_margins"]))
     m["inst"] = inst
     m["feasible"] = ok & finite
     return m

@@ -43,7 +43,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt), at the
     operating point when the scene has lasting loads (:func:`beltjax.drive.lasting_loads`;
     then also drive_torque_Nm, friction_needed and slip_margins per route entry, NaN where no
-    friction coefficient is given), the modes about the unloaded state (as ``beltjax modal``).  With
+    friction coefficient is given), and the modes are about that state (as ``beltjax modal``).  With
     ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
     tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
     campbell_owner (the frequencies are then the lowest ``track``, sorted).
@@ -51,20 +51,14 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     sc = parameters.set_values(scene, values)
     inst = statics.install(sc)
     v = drive.belt_speed(sc)
-    qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps)
-    out = statics.static_outputs(sc, qi, inst, v)
-    loaded = "statics" in outputs and drive.lasting_loads(sc)
-    q_out = qi
-    if loaded:  # the operating point under the mean loads
-        q_out, _, (conv_op, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps, loaded=True)
-        out = statics.static_outputs(sc, q_out, inst, v, loaded=True)
-        conv = jnp.minimum(conv, conv_op)
+    loaded = drive.lasting_loads(sc)  # the operating point under the mean loads
+    qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, steps=steps, loaded=loaded)
+    out = statics.static_outputs(sc, qi, inst, v, loaded)
     faults = statics.installation_faults(sc, inst)
     names = ["no_arm_balance", "belt_slack", "belt_overstretched"]
     conds = [faults[k] for k in names]
     codes = [_CODE[k] for k in names]
-    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0),
-              critical.supercritical(sc, qi, inst, v) | critical.supercritical(sc, q_out, inst, v)]
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
     codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
     res: dict[str, jax.Array] = {}
     if "statics" in outputs:
@@ -75,7 +69,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             res["spring_moment_Nm"] = drive.spring_moment(out["theta"], sc)
         res["converged"] = conv > 0.5
         if loaded:
-            need = friction.demand(jnp.maximum(critical.span_forces(sc, q_out, inst, v), 1e-9), inst.wrap)
+            need = friction.demand(jnp.maximum(critical.span_forces(sc, qi, inst, v), 1e-9), inst.wrap)
             res["drive_torque_Nm"] = out["drive_torque"]
             res["friction_needed"] = need
             res["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))
