@@ -154,9 +154,13 @@ def _case_table(sc, changes: list[dict]):
 def swept(scenes):
     """Every out-of-range row of the two-pulley bench as a sweep case, with overlapping
     pulleys, derived float64 limits, and values a scene file accepts (EI = 0, massless
-    pulleys), in one batch (2 elements per span)."""
-    sc = _small(scenes["T200"])
+    pulleys), in one batch (2 elements per span).  The effects that own a swept parameter are
+    listed, so that each parameter acts (a sweep of an unlisted effect's parameter is refused as a
+    whole)."""
     rows = [r for r in ROWS if r.base == "T200"]
+    sc = _small(scenes["T200"])
+    owners = sorted({schema.field(r.path).effect for r in rows} - {"", *sc.model.effects})
+    sc = eqx.tree_at(lambda s: s.model, sc, dataclasses.replace(sc.model, effects=(*sc.model.effects, *owners)))
     changes = [{r.path: r.value} for r in rows]
     extra = {
         "overlap": {f"{A}.center.x": 0.80, f"{A}.center.y": 0.2},

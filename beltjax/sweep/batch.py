@@ -42,8 +42,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     frequencies_hz (Hz, NaN when unstable), stable; campbell_hz (Hz, per ``rpm`` speed),
     campbell_stable.  The statics run at the drive pulley's speed_rpm (m/s of belt), at the
     operating point when the scene has lasting loads (:func:`beltjax.drive.lasting_loads`;
-    then also drive_torque_Nm, friction_needed and slip_margins per route entry, NaN where no
-    friction coefficient is given), and the modes are about that state (as ``beltjax modal``).  With
+    then also drive_torque_Nm, friction_needed per route entry and slip_margins per route entry
+    with a friction coefficient), and the modes are about that state (as ``beltjax modal``).  With
     ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
     tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
     campbell_owner (the frequencies are then the lowest ``track``, sorted).
@@ -72,7 +72,9 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             need = friction.demand(jnp.maximum(critical.span_forces(sc, qi, inst, v), 1e-9), inst.wrap)
             res["drive_torque_Nm"] = out["drive_torque"]
             res["friction_needed"] = need
-            res["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))
+            given = np.asarray(friction.given(sc), dtype=int)
+            if given.size:  # the arcs with a friction coefficient
+                res["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))[given]
     res["installation_tension_N"] = inst.tension  # evaluate checks each case's solved installation
     if sc.tensioner is not None:
         res["tensioner_angle_deg"] = jnp.rad2deg(out["theta"])

@@ -38,9 +38,9 @@ def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndar
             for j, name in enumerate(scene.route.order):
                 cols[f"friction_needed_{name}"] = result["friction_needed"][:, j]
                 if j in given:
-                    cols[f"slip_margin_{name}"] = result["slip_margins"][:, j]
+                    cols[f"slip_margin_{name}"] = result["slip_margins"][:, given.index(j)]
             if given:
-                cols["min_slip_margin"] = np.min(result["slip_margins"][:, given], axis=1)
+                cols["min_slip_margin"] = np.min(result["slip_margins"], axis=1)
     if "frequencies_hz" in result:
         for m in range(result["frequencies_hz"].shape[1]):
             cols[f"f{m + 1}_hz"] = result["frequencies_hz"][:, m]
