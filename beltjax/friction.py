@@ -22,21 +22,22 @@ import numpy as np
 from beltjax.scene import TENSIONER, Scene
 
 
-def effective_coefficients(scene: Scene):
+def effective_coefficients(scene: Scene, xp=jnp):
     """Effective friction coefficient mu' (-) per route entry, NaN where the scene gives none
-    (pure: differentiable in the coefficients and the groove angle)."""
+    (pure: differentiable in the coefficients and the groove angle; xp as :func:`demand`)."""
     b = scene.belt
     out = []
     for name in scene.route.order:
         mu = None if name == TENSIONER else scene.pulley(name).friction_coefficient
         mu = b.friction_coefficient if mu is None else mu
         if mu is None:
-            out.append(jnp.asarray(jnp.nan))
+            out.append(xp.asarray(xp.nan))
             continue
+        mu = xp.asarray(mu)
         if b.groove_angle_deg is not None and name not in scene.route.back_side:
-            mu = mu / jnp.sin(jnp.deg2rad(b.groove_angle_deg) / 2)
-        out.append(jnp.asarray(mu))
-    return jnp.stack(out)
+            mu = mu / xp.sin(xp.deg2rad(xp.asarray(b.groove_angle_deg)) / 2)
+        out.append(mu)
+    return xp.stack(out)
 
 
 def given(scene: Scene) -> list[int]:
@@ -46,17 +47,18 @@ def given(scene: Scene) -> list[int]:
             if b.friction_coefficient is not None or (name != TENSIONER and scene.pulley(name).friction_coefficient is not None)]
 
 
-def demand(forces, wrap):
+def demand(forces, wrap, xp=jnp):
     """Friction coefficient each arc needs (-), route order: |ln(F_out / F_in)| / wrap.
 
     forces: each span's force on the pulleys (N, route order along the last axis: span i leaves entry i); wrap:
     wrap angles (rad).  NaN where a span's force is not positive (a slack or supercritical span
-    carries nothing: no capstan ratio)."""
-    forces = jnp.asarray(forces)
-    f_in = jnp.roll(forces, 1, axis=-1)  # span i-1 arrives at entry i
+    carries nothing: no capstan ratio).  xp: the array module (numpy for host arrays: no
+    dispatch of small device computations)."""
+    forces = xp.asarray(forces)
+    f_in = xp.roll(forces, 1, axis=-1)  # span i-1 arrives at entry i
     ok = (forces > 0) & (f_in > 0)
-    ratio = jnp.where(ok, forces / jnp.where(ok, f_in, 1.0), 1.0)
-    return jnp.where(ok, jnp.abs(jnp.log(ratio)) / wrap, jnp.nan)
+    ratio = xp.where(ok, forces / xp.where(ok, f_in, 1.0), 1.0)
+    return xp.where(ok, xp.abs(xp.log(ratio)) / wrap, xp.nan)
 
 
 def margins(needed, available):
@@ -64,22 +66,22 @@ def margins(needed, available):
     return 1.0 - needed / available
 
 
-def sliding_arcs(needed, wrap, available):
+def sliding_arcs(needed, wrap, available, xp=jnp):
     """Sliding arc of each wrap (rad) by classical creep theory (Grashof, Reynolds): the belt
     slides over the part of the arc where its tension changes, ln(F_out / F_in) / mu' =
     wrap mu_needed / mu' (the rest, from the entry, adheres); the whole wrap at or past the
     capstan limit.  NaN where mu' is not given."""
-    return jnp.minimum(needed * wrap / available, wrap)
+    return xp.minimum(needed * wrap / available, wrap)
 
 
-def creep_speed_loss(stretches, drive_index: int):
+def creep_speed_loss(stretches, drive_index: int, xp=jnp):
     """Speed lost to creep (-) per route entry, relative to the drive pulley, by classical creep
     theory: a pulley turns with the belt where it adheres, at the entry of its wrap, so its rim
     runs at the arriving span's speed, c lam_in (c: the belt's unstretched flow, lam_in: that
     span's stretch); 1 - lam_in / lam_in(drive pulley), e.g. 1 - (1 + eps_slack) / (1 + eps_tight)
     for the driven pulley of a two-pulley drive.  stretches: each span's stretch (-), route order
     (span i leaves entry i) along the last axis."""
-    lam_in = jnp.roll(jnp.asarray(stretches), 1, axis=-1)
+    lam_in = xp.roll(xp.asarray(stretches), 1, axis=-1)
     return 1.0 - lam_in / lam_in[..., drive_index : drive_index + 1]
 
 
@@ -88,11 +90,12 @@ def assess(scene: Scene, forces, wrap, stretches=None, drive_index: int = 0) -> 
     wrap (deg), friction needed, available (None if not given), slip margin and sliding arc
     (deg; None if no coefficient is given), and, with the spans' ``stretches`` (-), the creep
     speed loss relative to the drive pulley (route index ``drive_index``)."""
-    need = np.asarray(demand(forces, np.asarray(wrap)))
-    have = np.asarray(effective_coefficients(scene))
-    margin = np.asarray(margins(need, have))
-    arcs = np.degrees(np.asarray(sliding_arcs(need, np.asarray(wrap), have)))
-    loss = None if stretches is None else np.asarray(creep_speed_loss(stretches, drive_index))
+    wrap = np.asarray(wrap)
+    need = demand(np.asarray(forces), wrap, np)
+    have = effective_coefficients(scene, np)
+    margin = margins(need, have)
+    arcs = np.degrees(sliding_arcs(need, wrap, have, np))
+    loss = None if stretches is None else creep_speed_loss(np.asarray(stretches), drive_index, np)
     out = {}
     for i, name in enumerate(scene.route.order):
         given = not np.isnan(have[i])

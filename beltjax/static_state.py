@@ -186,7 +186,7 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool) -> S
         drive_torque_Nm=float(out["drive_torque"]),
         loads_Nm={bodies[i]: float(loads[i]) for i in range(len(bodies)) if loads[i] != 0.0},
         friction=friction.assess(scene, forces, np.asarray(inst.wrap),
-                                 np.asarray(critical.span_stretches(scene, inst, out["lengths"])),
+                                 np.asarray(out["lengths"]) / (np.asarray(inst.span_length) / float(inst.stretch)),
                                  drive.drive_pulley(scene)),
     )
     worst = max(res.friction, key=lambda k: np.nan_to_num(res.friction[k]["friction_needed"]))

@@ -100,6 +100,8 @@ def _rigid_index(scene: Scene) -> dict[str, int]:
 def _straighten(qi_new, qi_old, scene: Scene, inst) -> jax.Array:
     """Spans of qi_new moved so that each stays straight between its (moved) end nodes."""
     spans = drive.spans_of(scene)
+    if spans.independent == 0:  # bars: nothing between the end nodes to move
+        return qi_new
     # the transient's map at t = 0 (a free drive pulley's rotation moves the belt with it)
     Ea, _ = drive.split_full(drive.full_coordinates(qi_old, scene, inst, t=0.0), scene)
     Eb, _ = drive.split_full(drive.full_coordinates(qi_new, scene, inst, t=0.0), scene)
@@ -307,14 +309,14 @@ def _friction_channels(scene: Scene, inst, pulley_forces, t, chans: dict, cols: 
     nothing (slack or past the critical speed: flagged on its own) counts as 1e-9 N."""
     from beltjax import friction
 
-    need = np.asarray(friction.demand(np.maximum(pulley_forces, 1e-9), np.asarray(inst.wrap)))
+    need = friction.demand(np.maximum(pulley_forces, 1e-9), np.asarray(inst.wrap), np)
     order = list(scene.route.order)
     chans["friction_needed"], cols["friction_needed"] = need, order
-    have = np.asarray(friction.effective_coefficients(scene))
     given = friction.given(scene)
     if not given:
         return []
-    margins = np.asarray(friction.margins(need[:, given], have[given]))
+    have = friction.effective_coefficients(scene, np)
+    margins = friction.margins(need[:, given], have[given])
     chans["slip_margins"], cols["slip_margins"] = margins, [order[i] for i in given]
     return slipping_pulleys(t, margins, cols["slip_margins"])
 
