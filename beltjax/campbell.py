@@ -102,7 +102,7 @@ def reference_modes(scene: Scene, n_modes: int, rpm: float | None = None):
     shapes; None when the drive is unstable there.  Raises the statics' one-line errors."""
     scene = drive.canonical(scene)
     v = float(drive.belt_speed(scene, rpm)) if rpm is not None else float(drive.belt_speed(scene))
-    st = statics.analyse_statics(scene, v)
+    st = statics.analyse_statics(scene, v, with_unloaded=False)
     out = drive_modal.modes_at(scene, jnp.asarray(st.qi), st.inst, v, effects_of(scene).moving_belt and v != 0.0)
     if not bool(out["stable"]):
         return None
@@ -305,7 +305,7 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
         raise BeltjaxError(f"expected positive finite excitation orders, got {orders!r}", "orders")
     if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise BeltjaxError(f"must be an integer >= 1, got {n_modes!r}", "n_modes")
-    statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])), allow_supercritical=True)
+    statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])), allow_supercritical=True, with_unloaded=False)
     tm = campbell_modes(scene, rpm, n_modes, progress=progress)
     t = tm.tracking
     curves = mode_tracking.reported(t, n_modes)

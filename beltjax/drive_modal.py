@@ -317,7 +317,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     the rotational model's massless spans, for one, keep positive stiffness there.  The
     scene and the speed are checked as in :func:`beltjax.statics.analyse_statics`.
     """
-    st = statics.analyse_statics(scene, speed, allow_supercritical=True)  # checks the scene and the speed
+    st = statics.analyse_statics(scene, speed, allow_supercritical=True, with_unloaded=False)  # checks the scene, the speed
     v = st.speed_m_s
     gyro = effects_of(scene).moving_belt and v != 0.0
     qi = jnp.asarray(st.qi)

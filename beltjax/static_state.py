@@ -97,13 +97,15 @@ class StaticResult:
 
 
 def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercritical: bool = False,
-                    loaded: bool | None = None) -> StaticResult:
+                    loaded: bool | None = None, with_unloaded: bool = True) -> StaticResult:
     """Static state of the drive at belt speed ``speed`` (m/s; default from speed_rpm).
 
     loaded: the operating point, under the scene's mean loads (each lasting [[torque]]'s mean,
     the listed bearing drag at the steady speeds: :func:`beltjax.drive.mean_body_loads`), with
     the unloaded state at the same speed in ``unloaded``; False: the unloaded state only;
     None (default): the operating point when the scene has mean loads, else the unloaded state.
+    with_unloaded: also solve the unloaded state beside an operating point (its own compiled
+    statics: the analyses that need only the operating point leave it out).
 
     Raises :class:`StaticsError` (one line) when the belt cannot be fitted, the
     Newton iteration fails even with speed stepping, a span would go slack, or the
@@ -126,7 +128,7 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     if loaded is None:
         loaded = drive.has_mean_loads(scene)
     res = _state(scene, v, loaded, allow_supercritical)
-    if loaded:
+    if loaded and with_unloaded:
         res.unloaded = _state(scene, v, False, True).to_json()
     return res
 

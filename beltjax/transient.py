@@ -124,7 +124,8 @@ def initial_state(scene: Scene):
         if float(load.t_start_s) <= 0.0 and (load.t_end_s is None or float(load.t_end_s) > 0.0))
     # statics needs none of the transient tables: strip them so that it compiles once per drive
     bare = dataclasses.replace(scene, initial=Initial(), simulation=Simulation(), torques=at_start, span_loads=())
-    st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)), allow_supercritical=True)
+    st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)), allow_supercritical=True,
+                                 with_unloaded=False)
     inst, qi0 = st.inst, jnp.asarray(st.qi)
     ini = scene.initial
     if ini.rotation_deg or ini.arm_angle_deg is not None:
