@@ -66,6 +66,17 @@ def margins(needed, available):
     return 1.0 - needed / available
 
 
+def arc_margins(scene: Scene, forces, wrap, xp=jnp):
+    """(friction each arc needs (-), per route entry; slip margins (-) of the entries with a
+    coefficient, in :func:`given` order) for spans that pull the pulleys with ``forces`` (N, route
+    order along the last axis), wraps ``wrap`` (rad).  A span that carries nothing (slack, or
+    past the critical speed: flagged on its own) counts as 1e-9 N.  The one assessment of
+    transients, sweeps and optimisation; xp as :func:`demand`."""
+    need = demand(xp.maximum(forces, 1e-9), wrap, xp)
+    idx = np.asarray(given(scene), dtype=int)
+    return need, margins(need[..., idx], effective_coefficients(scene, xp)[idx])
+
+
 def sliding_arcs(needed, wrap, available, xp=jnp):
     """Sliding arc of each wrap (rad) by classical creep theory (Grashof, Reynolds): the belt
     slides over the part of the arc where its tension changes, ln(F_out / F_in) / mu' =

@@ -310,14 +310,12 @@ def _friction_channels(scene: Scene, inst, pulley_forces, t, chans: dict, cols: 
     nothing (slack or past the critical speed: flagged on its own) counts as 1e-9 N."""
     from beltjax import friction
 
-    need = friction.demand(np.maximum(pulley_forces, 1e-9), np.asarray(inst.wrap), np)
+    need, margins = friction.arc_margins(scene, pulley_forces, np.asarray(inst.wrap), np)
     order = list(scene.route.order)
     chans["friction_needed"], cols["friction_needed"] = need, order
     given = friction.given(scene)
     if not given:
         return []
-    have = friction.effective_coefficients(scene, np)
-    margins = friction.margins(need[:, given], have[given])
     chans["slip_margins"], cols["slip_margins"] = margins, [order[i] for i in given]
     return slipping_pulleys(t, margins, cols["slip_margins"])
 

@@ -91,8 +91,7 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
           & jnp.all(force > 0))
     finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in m.values()]))
     if any(c.kind == "min_slip_margin" for c in problem.constraints):  # the arcs' slip margins (capstan law)
-        need = friction.demand(jnp.maximum(force[0], 1e-9), inst.wrap)
-        m["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))[np.asarray(friction.given(sc))]
+        m["slip_margins"] = friction.arc_margins(sc, force[0], inst.wrap)[1]
         ok = ok & jnp.all(jnp.isfinite(m["slip_margins"]))
     m["inst"] = inst
     m["feasible"] = ok & finite

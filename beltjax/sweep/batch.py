@@ -69,12 +69,11 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             res["spring_moment_Nm"] = drive.spring_moment(out["theta"], sc)
         res["converged"] = conv > 0.5
         if loaded:
-            need = friction.demand(jnp.maximum(critical.span_forces(sc, qi, inst, v), 1e-9), inst.wrap)
+            need, margins = friction.arc_margins(sc, critical.span_forces(sc, qi, inst, v), inst.wrap)
             res["drive_torque_Nm"] = out["drive_torque"]
             res["friction_needed"] = need
-            given = np.asarray(friction.given(sc), dtype=int)
-            if given.size:  # the arcs with a friction coefficient
-                res["slip_margins"] = friction.margins(need, friction.effective_coefficients(sc))[given]
+            if margins.size:  # the arcs with a friction coefficient
+                res["slip_margins"] = margins
     res["installation_tension_N"] = inst.tension  # evaluate checks each case's solved installation
     if sc.tensioner is not None:
         res["tensioner_angle_deg"] = jnp.rad2deg(out["theta"])
