@@ -11,7 +11,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from beltjax import mode_tracking, sweep_modes
+from beltjax import drive, mode_tracking, sweep_modes
 from beltjax.scene import Scene
 from beltjax.sweep.spec import cases, load_spec
 from beltjax.sweep.batch import _chunk_size, _devices, evaluate
@@ -63,7 +63,8 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
                       backend=backend, dask=spec.dask_scheduler, reference=refs or None)
     wall = time.perf_counter() - t0
     devices = _devices() if backend == "local" else None
-    size = _chunk_size(n, spec.chunk, 0 if spec.rpm is None else len(spec.rpm), devices)
+    size = _chunk_size(n, spec.chunk, 0 if spec.rpm is None else len(spec.rpm), devices,
+                      drive.n_independent(scene))
     steady = (n - size) / (wall - first[0]) if first and n > size and wall > first[0] else None
     timing = {"backend": backend, "devices": [str(d) for d in (devices or jax.local_devices()[:1])]
               if backend == "local" else None, "chunk": size, "wall_s": wall,
