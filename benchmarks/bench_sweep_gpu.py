@@ -89,7 +89,11 @@ def main():
     ap.add_argument("--cache", default=None, help="JAX persistent compilation cache folder (off if not given)")
     ap.add_argument("--json", default=None, help="write the results here")
     ap.add_argument("--label", default="", help="a note saved with the results (e.g. the XLA flags)")
+    ap.add_argument("--cpu", action="store_true", help="run on a CPU too (else a CPU-only machine skips)")
     args = ap.parse_args()
+    if jax.devices()[0].platform == "cpu" and not args.cpu:
+        print("bench_sweep_gpu: no accelerator here; skipped (--cpu runs it on the CPU)")
+        return
     if args.cache:
         os.environ["BELTJAX_CACHE"] = args.cache
         runtime.enable_compile_cache()
