@@ -47,12 +47,14 @@ _BELT = ("EA", "EI", "rhoA", "CA", "static_tension", "length", "friction_coeffic
 _PULLEY = ("radius", "mass", "inertia", "speed_rpm", "acceleration_rpm_per_s",
            "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "bearing_damping", "friction_coefficient")
 #: keys a scene may leave out (no value to sweep or fit unless given)
-_OPTIONAL = ("friction_coefficient", "groove_angle_deg")
+_OPTIONAL = ("friction_coefficient", "groove_angle_deg", "stop_min_deg", "stop_max_deg", "stop_stiffness")
 #: pulley keys of the drive pulley only (its speed) and of driven pulleys only (prescribed motion)
 _DRIVE_ONLY = ("speed_rpm",)
 _DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
 _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_mass",
-              "pulley_inertia", "spring_stiffness", "spring_preload_deg", "arm_cm_distance", "damping")
+              "pulley_inertia", "spring_stiffness", "spring_preload_deg", "arm_cm_distance", "damping",
+              "friction_moment", "friction_asymmetry", "friction_speed", "stop_min_deg", "stop_max_deg",
+              "stop_stiffness")
 
 
 class ParameterError(BeltjaxError):
@@ -87,7 +89,10 @@ def paths(scene: Scene) -> list[str]:
                 and (k not in _OPTIONAL or getattr(p, k) is not None)]
     if scene.tensioner is not None:
         out += [f"tensioner.pivot.{c}" for c in _COMPONENTS]
-        out += [f"tensioner.{k}" for k in _TENSIONER]
+        t = scene.tensioner
+        stops = t.stop_min_deg is not None or t.stop_max_deg is not None
+        out += [f"tensioner.{k}" for k in _TENSIONER
+                if k not in _OPTIONAL or (getattr(t, k) is not None and (k != "stop_stiffness" or stops))]
     return out
 
 

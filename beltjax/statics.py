@@ -33,6 +33,7 @@ centrifugal terms of the moving belt included when ``transport`` is listed).
 
 from __future__ import annotations
 
+import math
 from functools import partial
 
 import jax
@@ -41,7 +42,7 @@ import numpy as np
 
 from beltjax import ancf, drive, span
 from beltjax.errors import BeltjaxError
-from beltjax.drive import Installation
+from beltjax.drive import Installation, pivot
 from beltjax.scene import TENSIONER, Scene
 
 #: largest installation strain accepted (2 %, far beyond any belt's working strain): a
@@ -86,7 +87,7 @@ def _arm_residual(theta, scene: Scene):
         T = b.static_tension
     else:
         T = ancf.axial_force(path / b.length, b.EA)
-    return T * arm - t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
+    return T * arm + pivot.elastic_moment(theta, t)
 
 
 def _arm_guess(scene: Scene):
@@ -229,6 +230,15 @@ def check_installation(scene: Scene, inst: Installation) -> None:
             f"{float(inst.tension):.4g} N) to reach round the pulleys (limit {100 * MAX_INSTALL_STRAIN:.3g} %)",
             key,
         )
+    t = scene.tensioner
+    if t is not None:  # the end stops must contain the installed arm (else it rests on a stop)
+        a = math.degrees(float(inst.arm_angle))
+        for k, stop, beyond in (("stop_max_deg", t.stop_max_deg, lambda s: a > s),
+                                ("stop_min_deg", t.stop_min_deg, lambda s: a < s)):
+            if stop is not None and beyond(float(stop)):
+                raise StaticsError(
+                    f"the arm settles at {a:.4g} deg, on its stop at {float(stop):.4g} deg: the stops must contain "
+                    "the installed arm angle (move the stop, or check the spring and the belt)", f"tensioner.{k}")
 
 
 # --------------------------------------------------------------------------- equilibrium

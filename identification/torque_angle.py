@@ -314,7 +314,8 @@ class TorqueAngleFit:
         return [path]
 
     def scene_block(self) -> str:
-        """TOML ``[tensioner]`` fragment with the fitted spring (the friction band as a comment)."""
+        """TOML ``[tensioner]`` fragment with the fitted spring and friction band (paste it into a
+        scene and list the ``tensioner_friction`` effect)."""
         slope = ""
         if self.friction_slope_Nm_per_deg is not None:
             slope = f", varying by {self.friction_slope_Nm_per_deg:+.3g} N m/deg"
@@ -324,9 +325,9 @@ class TorqueAngleFit:
             f"spring_stiffness = {self.spring_stiffness_Nm_per_rad:.6g}   # N m/rad, "
             f"± {self.spring_stiffness_se:.2g}",
             f"spring_preload_deg = {self.spring_preload_deg:.6g}   # deg, ± {self.spring_preload_se:.2g}",
-            f"# dry friction band: ± {self.friction_band_Nm:.3g} N m (± {self.friction_band_se:.2g}) about the "
-            f"spring line at {self.friction_band_at_deg:.1f} deg{slope};",
-            "# the scene model has no dry friction (only viscous tensioner.damping), so it is not included.",
+            f"friction_moment = {self.friction_band_Nm:.6g}   # N m, ± {self.friction_band_se:.2g}: the dry-friction "
+            f"band about the spring line at {self.friction_band_at_deg:.1f} deg{slope}",
+            '# with "tensioner_friction" in [model] effects (regularised Coulomb at the pivot: beltjax.drive.pivot)',
         ])
 
 

@@ -219,6 +219,16 @@ CASES = [
          "idler inside the crank pulley at the given arm angle",
          lambda d: ["statics", bench(d, ("pivot = [0.64335, 0.0884]", "pivot = [0.80, 0.15]"))],
          "tensioner.arm_angle_deg", "centre distance"),
+    case("scene-tensioner-negative-friction", "`statics`: tensioner `friction_moment = -1.0`",
+         "a dry-friction moment below zero (friction that drives the arm)",
+         lambda d: ["statics", bench(d, ("arm_angle_deg = 46.5", "arm_angle_deg = 46.5\nfriction_moment = -1.0"),
+                                     ('effects = ["transport"]', 'effects = ["transport", "tensioner_friction"]'))],
+         "tensioner.friction_moment", ">= 0"),
+    case("scene-tensioner-stops-miss-arm", "`statics`: `stop_min_deg = 50.0`, `stop_max_deg = 60.0`",
+         "end stops that do not contain the arm's angle (46.5 deg)",
+         lambda d: ["statics", bench(d, ("arm_angle_deg = 46.5", "arm_angle_deg = 46.5\nstop_min_deg = 50.0\n"
+                                                                 "stop_max_deg = 60.0"))],
+         "tensioner.stop_min_deg", "do not contain"),
     case("scene-tensioner-cm-beyond-arm", "`statics`: `arm_cm_distance = 0.2` (arm 0.094 m)",
          "centre of mass beyond the arm",
          lambda d: ["statics", bench(d, ("pulley_inertia = 0.1806e-3", "pulley_inertia = 0.1806e-3\n"

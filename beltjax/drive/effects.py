@@ -20,10 +20,13 @@ Effects (units of the parameters they own):
 - ``unbalance``: pulley.cm_offset (m), the centre of mass off the axis;
 - ``speed_fluctuation``: pulley.fluctuation_amplitude_deg / _frequency_hz, a harmonic
   fluctuation of a driven pulley's angle.
+- ``tensioner_friction``: tensioner.friction_moment (N m), friction_asymmetry (-),
+  friction_speed (rad/s): dry friction at the tensioner pivot (:mod:`beltjax.drive.pivot`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from typing import ClassVar
 
@@ -33,6 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import ancf, schema, span
+from beltjax.drive import pivot
 from beltjax.scene.spec import EFFECTS, TENSIONER, Scene
 
 
@@ -48,8 +52,9 @@ class Effect(eqx.Module):
         return [k for k, f in schema.FIELDS.items() if f.effect == self.name]
 
     def given(self, scene: Scene) -> list[str]:
-        """Scene keys of this effect's parameters that ``scene`` gives a non-zero value
-        (``belt.CA``, ``pulley[1].cm_offset``, ``tensioner.damping``)."""
+        """Scene keys of this effect's parameters that ``scene`` gives a value other than its
+        default (the field's default in :mod:`beltjax.scene.spec`, else 0): ``belt.CA``,
+        ``pulley[1].cm_offset``, ``tensioner.damping``."""
         out = []
         for key in self.parameters():
             group, attr = key.split(".")
@@ -61,7 +66,8 @@ class Effect(eqx.Module):
                 owners = [(group, getattr(scene, group))] if getattr(scene, group) is not None else []
             for prefix, obj in owners:
                 v = getattr(obj, attr)
-                if v is not None and float(np.max(np.abs(np.asarray(v)))) > 0:
+                default = _defaults(type(obj)).get(attr, 0.0)
+                if v is not None and float(np.max(np.abs(np.asarray(v) - default))) > 0:
                     out.append(f"{prefix}.{attr}")
         return out
 
@@ -91,6 +97,12 @@ class Effect(eqx.Module):
     def drive_angle(self, angle, pulley, t):
         """The drive pulley's angle (rad) at time t (s) with this effect."""
         return angle
+
+
+@functools.lru_cache(maxsize=None)
+def _defaults(cls) -> dict:
+    """{field: default} of a scene dataclass's fields that have one."""
+    return {f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
 
 
 class Transport(Effect):
@@ -203,6 +215,20 @@ class TensionerDamping(Effect):
         return f.at[-1, 2].add(-scene.tensioner.damping * bodies_dot[-1, 2])
 
 
+class TensionerFriction(Effect):
+    """Dry friction at the tensioner pivot: regularised, optionally asymmetric Coulomb
+    (:func:`beltjax.drive.pivot.friction_moment`; N m)."""
+
+    name: ClassVar[str] = "tensioner_friction"
+
+    def body_forces(self, f, bodies, bodies_dot, scene, t):
+        # steady states (bodies None: the arm at rest) take no friction moment: the arm may rest
+        # anywhere inside its friction band, and the operating point is the frictionless one
+        if scene.tensioner is None or bodies is None:
+            return f
+        return f.at[-1, 2].add(pivot.friction_moment(bodies_dot[-1, 2], bodies[-1, 2], scene.tensioner))
+
+
 class Unbalance(Effect):
     """Pulley centres of mass off the axis by cm_offset (m, in the pulley's frame): a pulley's
     body position is the centre of mass of the pulley and its wrapped belt (on the axis)."""
@@ -237,7 +263,8 @@ class SpeedFluctuation(Effect):
 
 #: every effect module, by the name a scene lists
 MODULES: dict[str, type[Effect]] = {m.name: m for m in (Transport, Gravity, BeltDamping, BearingDamping,
-                                                          TensionerDamping, Unbalance, SpeedFluctuation)}
+                                                          TensionerDamping, Unbalance, SpeedFluctuation,
+                                                          TensionerFriction)}
 assert tuple(MODULES) == EFFECTS
 
 

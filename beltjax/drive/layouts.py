@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import geometry
+from beltjax.drive import pivot
 from beltjax.scene.spec import TENSIONER
 
 
@@ -112,13 +113,13 @@ class TensionerArm(Layout):
         return [jnp.stack([t.arm_mass, t.arm_mass, t.arm_inertia])]
 
     def body_forces(self, f, bodies, scene):
-        return f.at[-1, 2].add(spring_moment(bodies[-1, 2], scene))
+        return f.at[-1, 2].add(pivot.elastic_moment(bodies[-1, 2], scene.tensioner))
 
 
 def spring_moment(theta, scene):
-    """Moment of the tensioner spring on the arm (N m): -k (theta - theta_0), theta in rad."""
-    t = scene.tensioner
-    return -t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg))
+    """Moment of the tensioner spring on the arm (N m): -k (theta - theta_0), theta in rad
+    (:func:`beltjax.drive.pivot.spring_moment`)."""
+    return pivot.spring_moment(theta, scene.tensioner)
 
 
 def _turn(a, b):

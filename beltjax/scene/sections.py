@@ -81,6 +81,7 @@ _EFFECT_PARAMETERS = {
     "tensioner_damping": "tensioner.damping",
     "unbalance": "pulley[i].cm_offset",
     "speed_fluctuation": "pulley[i].fluctuation_amplitude_deg",
+    "tensioner_friction": "tensioner.friction_moment",
 }
 
 
@@ -97,6 +98,12 @@ _TENSIONER_KEYS = (
     "arm_angle_deg",
     "arm_cm_distance",
     "damping",
+    "friction_moment",
+    "friction_asymmetry",
+    "friction_speed",
+    "stop_min_deg",
+    "stop_max_deg",
+    "stop_stiffness",
 )
 
 
@@ -196,6 +203,20 @@ def _parse_tensioner(data, source) -> Tensioner:
     if cm > arm_length:
         t.fail("arm_cm_distance", f"must not exceed arm_length = {arm_length!r}, got {cm!r}")
     vals["arm_cm_distance"] = _arr(cm)
+    vals.update(friction_moment=_arr(_num(t, "friction_moment", "tensioner", required=False, default=0.0)),
+                friction_asymmetry=_arr(_num(t, "friction_asymmetry", "tensioner", required=False, default=1.0)),
+                friction_speed=_arr(_num(t, "friction_speed", "tensioner", required=False, default=0.01)))
+    lo = _num(t, "stop_min_deg", "tensioner", required=False)
+    hi = _num(t, "stop_max_deg", "tensioner", required=False)
+    if lo is not None and hi is not None and lo >= hi:
+        t.fail("stop_max_deg", f"must be above stop_min_deg = {lo!r} deg, got {hi!r}")
+    arm = _num(t, "arm_angle_deg", "tensioner", required=False)
+    for key, bad in (("stop_min_deg", lo is not None and arm is not None and arm < lo),
+                     ("stop_max_deg", hi is not None and arm is not None and arm > hi)):
+        if bad:
+            t.fail(key, f"the stops [{lo}, {hi}] deg do not contain the arm's angle arm_angle_deg = {arm!r} deg")
+    vals.update(stop_min_deg=_arr(lo), stop_max_deg=_arr(hi),
+                stop_stiffness=_arr(_num(t, "stop_stiffness", "tensioner", required=False, default=1e4)))
     return Tensioner(**vals)
 
 

@@ -21,6 +21,7 @@ EFFECTS = (
     "tensioner_damping",  # viscous damping at the tensioner pivot (tensioner.damping)
     "unbalance",  # pulley centre-of-mass offsets (pulley.cm_offset)
     "speed_fluctuation",  # harmonic fluctuation of a driven pulley's angle
+    "tensioner_friction",  # dry (Coulomb) friction at the tensioner pivot
 )
 
 
@@ -104,7 +105,10 @@ class Tensioner(eqx.Module):
     pivot (2,) m, arm_length m, pulley_radius m, arm_mass kg, arm_inertia kg m^2
     (about the arm's centre of mass), pulley_mass kg, pulley_inertia kg m^2,
     spring_stiffness N m/rad, spring_preload_deg deg, arm_angle_deg deg or None,
-    arm_cm_distance m, damping N m s/rad.
+    arm_cm_distance m, damping N m s/rad; dry friction at the pivot (effect
+    ``tensioner_friction``): friction_moment N m, friction_asymmetry (-), friction_speed rad/s;
+    end stops: stop_min_deg / stop_max_deg deg or None, stop_stiffness N m/rad
+    (:mod:`beltjax.drive.pivot`).
     """
 
     pivot: jax.Array
@@ -119,6 +123,12 @@ class Tensioner(eqx.Module):
     arm_angle_deg: jax.Array | None
     arm_cm_distance: jax.Array
     damping: jax.Array
+    friction_moment: jax.Array = 0.0
+    friction_asymmetry: jax.Array = 1.0
+    friction_speed: jax.Array = 0.01
+    stop_min_deg: jax.Array | None = None
+    stop_max_deg: jax.Array | None = None
+    stop_stiffness: jax.Array = 1e4
 
     def idler_center(self, theta):
         """Idler centre (m), shape (2,), at arm angle theta (rad, CCW from +x)."""

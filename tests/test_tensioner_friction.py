@@ -1,0 +1,173 @@
+"""The tensioner's pivot: dry friction (regularised Coulomb, optionally asymmetric) and end stops
+(beltjax.drive.pivot), checked against Den Hartog's exact Coulomb oscillator, the energy per
+cycle, the torque-angle fit it is pasted from, and in scenes and transients."""
+
+from __future__ import annotations
+
+import math
+import re
+import pathlib
+import types
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from beltjax import statics
+from beltjax.drive import effects_of, pivot
+from beltjax.errors import BeltjaxError
+from beltjax.scene import load_scene, loads_scene
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def _pivot(Tf, a=1.0, w_r=1e-3, k=1.0, theta0_deg=0.0, stops=(None, None), ks=1e4):
+    return types.SimpleNamespace(friction_moment=Tf, friction_asymmetry=a, friction_speed=w_r, spring_stiffness=k,
+                                 spring_preload_deg=theta0_deg, stop_min_deg=stops[0], stop_max_deg=stops[1],
+                                 stop_stiffness=ks)
+
+
+def _oscillate(P, F, k, m, w, w_r, periods=6):
+    """The oscillator with the pivot's friction law, from Den Hartog's periodic state: the last
+    period's amplitude (m) and friction work (J)."""
+    X0, phi = pivot.den_hartog(P, F, k, m, w)
+    t = _pivot(F, w_r=w_r)
+
+    def f(time, y, args):
+        x, v, e = y
+        fr = pivot.friction_moment(v, x, t)
+        return jnp.stack([v, (P * jnp.cos(w * time + phi) - k * x + fr) / m, -fr * v])
+
+    T = 2 * math.pi / w
+    ts = jnp.linspace((periods - 1) * T, periods * T, 2001)
+    sol = diffrax.diffeqsolve(diffrax.ODETerm(f), diffrax.Dopri8(), 0.0, periods * T, T / 200,
+                              jnp.array([X0, 0.0, 0.0]), saveat=diffrax.SaveAt(ts=ts),
+                              stepsize_controller=diffrax.PIDController(rtol=1e-10, atol=1e-12), max_steps=200000)
+    x, e = np.asarray(sol.ys[:, 0]), np.asarray(sol.ys[:, 2])
+    return X0, 0.5 * (x.max() - x.min()), e[-1] - e[0]
+
+
+@pytest.mark.parametrize("r, ratio", [(0.8, 0.2), (1.6, 0.3)])
+def test_den_hartog_amplitude_and_energy_per_cycle(r, ratio):
+    """The regularised law (omega_r a thousandth of the peak speed) gives Den Hartog's exact
+    steady amplitude to 0.2 %, and the energy dissipated per cycle is 4 F X0 to 0.2 %."""
+    k, m, P = 1.0, 1.0, 1.0
+    w = r * math.sqrt(k / m)
+    X0 = pivot.den_hartog(P, ratio * P, k, m, w)[0]
+    exact, amp, work = _oscillate(P, ratio * P, k, m, w, w_r=1e-3 * w * X0)
+    assert amp == pytest.approx(exact, rel=2e-3)
+    assert work == pytest.approx(4 * ratio * P * amp, rel=2e-3)
+
+
+def test_regularisation_error_shrinks_with_the_speed():
+    """The amplitude error of the regularisation falls as omega_r does (measured, not assumed)."""
+    k, m, P, F, w = 1.0, 1.0, 1.0, 0.3, 1.6
+    X0 = pivot.den_hartog(P, F, k, m, w)[0]
+    errs = [abs(_oscillate(P, F, k, m, w, w_r=q * w * X0)[1] / X0 - 1) for q in (1e-1, 1e-2)]
+    assert errs[1] < 0.3 * errs[0]
+
+
+def test_asymmetric_band():
+    """Loading (moving away from the free angle) takes a times the unloading moment; the mean is T_f."""
+    t = _pivot(2.0, a=3.0, w_r=1e-6, theta0_deg=0.0)
+    load = float(-pivot.friction_moment(1.0, 0.5, t))     # theta > theta_0, moving away
+    unload = float(pivot.friction_moment(-1.0, 0.5, t))   # moving back towards it
+    assert load / unload == pytest.approx(3.0, rel=1e-9)
+    assert 0.5 * (load + unload) == pytest.approx(2.0, rel=1e-9)
+    # the same below the free angle, mirrored
+    assert float(pivot.friction_moment(-1.0, -0.5, t)) == pytest.approx(load, rel=1e-9)
+
+
+def test_stops_are_conservative_and_only_outside():
+    t = _pivot(0.0, k=20.0, theta0_deg=40.0, stops=(50.0, 85.0), ks=1e4)
+    th = jnp.deg2rad(jnp.array([60.0, 70.0, 84.9]))
+    assert np.allclose(pivot.stop_moment(th, t), 0.0)
+    assert float(pivot.stop_moment(jnp.deg2rad(86.0), t)) == pytest.approx(-1e4 * math.radians(1.0))
+    assert float(pivot.stop_moment(jnp.deg2rad(49.0), t)) == pytest.approx(1e4 * math.radians(1.0))
+    # a potential: the moment is minus the derivative of its integral (path independence, C1)
+    g = jax.grad(lambda x: pivot.stop_moment(x, t))(jnp.deg2rad(86.0))
+    assert float(g) == pytest.approx(-1e4)
+
+
+def test_pasted_fit_block_reproduces_the_torque_angle_loop():
+    """A slow arm cycle of the scene with the fit's [tensioner] block pasted in gives the fitted
+    loop: the pivot moments (spring + friction, the spring's sense) equal the fit's branches away
+    from the turning points."""
+    from identification import torque_angle
+
+    ds = ROOT / "identification" / "examples" / "tensioner_torque_angle" / "dataset.toml"
+    import tomllib
+
+    sec = tomllib.loads(ds.read_text())["torque_angle"]
+    sec.pop("friction", None)
+    res = torque_angle.fit_torque_angle(sec, ds.parent, "torque_angle")
+    block = res.scene_block()
+    text = (ROOT / "scenes" / "tensioner_bench_stage2.toml").read_text()
+    lines = [ln for ln in block.splitlines() if "=" in ln and not ln.startswith("#")]
+    for ln in lines:  # the fitted keys replace the scene's
+        text = re.sub(rf"^{ln.split('=')[0].strip()}\s*=.*$", "", text, flags=re.M)
+    text = re.sub(r"^\[tensioner\]", lambda _: "[tensioner]\n" + "\n".join(lines), text, count=1, flags=re.M)
+    text = re.sub(r"^effects\s*=\s*\[", 'effects = ["tensioner_friction", ', text, count=1, flags=re.M)
+    scene = loads_scene(text)
+    assert "tensioner_friction" in effects_of(scene)
+    t = scene.tensioner
+    assert float(t.friction_moment) == pytest.approx(res.friction_band_Nm, rel=1e-5)
+    lo, hi = res.angle_range_deg
+    ts = np.linspace(0.0, 10.0, 2001)  # one 0.1 Hz cycle over the fitted range
+    theta = np.deg2rad(0.5 * (lo + hi) + 0.4 * (hi - lo) * np.sin(2 * np.pi * 0.1 * ts))
+    omega = np.gradient(theta, ts)
+    model = np.asarray(pivot.elastic_moment(jnp.asarray(theta), t) + pivot.friction_moment(jnp.asarray(omega),
+                                                                                            jnp.asarray(theta), t))
+    sliding = np.abs(omega) > 5 * float(t.friction_speed)
+    fitted = res.predict(np.rad2deg(theta), np.sign(omega))
+    assert np.max(np.abs(model - fitted)[sliding]) < 1e-3 * np.ptp(fitted)
+
+
+def _fead(extra_tensioner: str = "", effect: bool = True) -> str:
+    text = (ROOT / "scenes" / "fead_8pulley.toml").read_text()
+    text = text.replace("damping = 0.5 ", extra_tensioner + "\ndamping = 0.5 ", 1)
+    if effect:
+        text = text.replace('effects = ["transport"', 'effects = ["tensioner_friction", "transport"', 1)
+    return text
+
+
+@pytest.mark.parametrize("extra, key", [
+    ("friction_moment = -1.0", "tensioner.friction_moment"),
+    ("stop_min_deg = 85.0\nstop_max_deg = 90.0", "tensioner.stop_min_deg"),
+    ("stop_min_deg = 60.0\nstop_max_deg = 50.0", "tensioner.stop_max_deg"),
+    ("friction_speed = 0.0", "tensioner.friction_speed"),
+])
+def test_bad_pivot_inputs_name_the_key(extra, key):
+    with pytest.raises(BeltjaxError) as e:
+        loads_scene(_fead(extra))
+    assert key in str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_friction_without_its_effect_is_refused():
+    with pytest.raises(BeltjaxError, match="tensioner_friction"):
+        loads_scene(_fead("friction_moment = 1.0", effect=False))
+
+
+def test_stops_enter_the_installation():
+    """A stop inside the spring's travel holds the arm there: the installed arm angle moves to
+    the stop (within the stop's compliance), and the belt's tension follows."""
+    free = statics.install(loads_scene(_fead(effect=False)))
+    a = math.degrees(float(free.arm_angle))
+    stopped = statics.install(loads_scene(_fead(f"stop_max_deg = {a - 5.0}\narm_angle_deg = {a - 6.0}",
+                                                effect=False).replace("arm_angle_deg = 80.0", "")))
+    assert math.degrees(float(stopped.arm_angle)) == pytest.approx(a - 5.0, abs=0.5)
+
+
+def test_a_stop_that_holds_the_installed_arm_is_refused():
+    """Stops must contain the installed arm: one that the arm settles on is an error naming it."""
+    from beltjax.static_state import analyse_statics
+
+    free = statics.install(loads_scene(_fead(effect=False)))
+    a = math.degrees(float(free.arm_angle))
+    text = _fead(f"stop_max_deg = {a - 5.0}", effect=False).replace("arm_angle_deg = 80.0", f"arm_angle_deg = {a - 6}")
+    with pytest.raises(statics.StaticsError) as e:
+        analyse_statics(loads_scene(text), loaded=False)
+    assert e.value.key == "tensioner.stop_max_deg"
