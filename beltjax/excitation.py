@@ -12,7 +12,8 @@ histories and their spectra at a false, lower frequency.
 * each ``[[torque]]`` and ``[[span_load]]`` with an amplitude and ``frequency_hz`` > 0 that
   acts before the run ends;
 * the drive pulley's speed fluctuation (``fluctuation_frequency_hz``, with the
-  ``speed_fluctuation`` effect);
+  ``speed_fluctuation`` effect) and each ``[[fluctuation]]`` harmonic (an order at the run's
+  highest drive speed);
 * the rotation of each unbalanced pulley (``cm_offset``, with the ``unbalance`` effect): once
   per revolution, at the highest speed the pulley reaches in the run (the run-up's end or
   target speed, plus the fluctuation's peak speed; a free drive pulley at its initial
@@ -99,7 +100,11 @@ def peak_drive_speed(scene: Scene, t_end: float) -> float:
         tau = min(t_end, max(0.0, (float(p.target_speed_rpm) * rpm - w0) / a))
     w = max(w0, abs(w0 + a * tau))
     if "speed_fluctuation" in effects_of(scene):
+        w0 = w
         w += 2 * math.pi * float(p.fluctuation_frequency_hz) * math.radians(abs(float(p.fluctuation_amplitude_deg)))
+        for x in scene.fluctuations:  # each harmonic's peak speed: n w A (orders) or 2 pi f A
+            rate = float(x.rate) * w0 if x.per == "rev" else 2 * math.pi * float(x.rate)
+            w += rate * math.radians(abs(float(x.amplitude_deg)))
     return w
 
 
@@ -131,6 +136,16 @@ def forcing(scene: Scene, t_end: float) -> list[Forcing]:
             and float(d.fluctuation_amplitude_deg) != 0.0):
         out.append(Forcing(f"pulley[{[p.name for p in scene.pulleys].index(d.name)}].fluctuation_frequency_hz",
                            f"the speed fluctuation of {d.name}", frequency_hz=float(d.fluctuation_frequency_hz)))
+    if "speed_fluctuation" in effects_of(scene) and scene.fluctuations:
+        w = peak_drive_speed(scene, t_end)  # an order's frequency at the highest speed of the run
+        for i, x in enumerate(scene.fluctuations):
+            if float(x.amplitude_deg) == 0.0:
+                continue
+            f = float(x.rate) * w / (2 * math.pi) if x.per == "rev" else float(x.rate)
+            what = (f"order {float(x.rate):.4g} of the fluctuation of {d.name}" if x.per == "rev"
+                    else f"the fluctuation of {d.name} at {float(x.rate):.4g} Hz")
+            key = x.file and "file" or ("order" if x.per == "rev" else "frequency_hz")
+            out.append(Forcing(f"{x.key or f'fluctuation[{i}]'}.{key}", what, frequency_hz=f))
     if "unbalance" in effects_of(scene):
         v = peak_drive_speed(scene, t_end) * float(d.radius)  # belt speed, m/s
         for i, p in enumerate(scene.pulleys):

@@ -134,6 +134,11 @@ FIELDS: dict[str, Field] = {
     "tensioner.stop_min_deg": _ANGLE,
     "tensioner.stop_max_deg": _ANGLE,
     "tensioner.stop_stiffness": Field("N m/rad", 1e-6, 1e9, "a contact stiffer than the spring", ">0"),
+    "fluctuation.order": Field("-", 0.0, 1e3, "cycles per revolution: engines excite orders up to about 20", ">0",
+                               "speed_fluctuation"),
+    "fluctuation.frequency_hz": Field("Hz", 0.0, 1e6, "far above any belt-drive excitation", ">0", "speed_fluctuation"),
+    "fluctuation.amplitude_deg": Field("deg", 0.0, 360.0, "a full turn", ">=0", "speed_fluctuation"),
+    "fluctuation.phase_deg": Field("deg", -3600.0, 3600.0, "ten turns either way", "", "speed_fluctuation"),
     "torque.mean_Nm": _MOMENT,
     "torque.amplitude_Nm": _MOMENT,
     "torque.frequency_hz": _FREQ,
@@ -163,7 +168,7 @@ FIELDS: dict[str, Field] = {
                        ">=0"),
 }
 
-_INDEXED = re.compile(r"^(pulley|torque|span_load)\[\d+\]\.(.+)$")
+_INDEXED = re.compile(r"^(pulley|torque|span_load|fluctuation)\[\d+\]\.(.+)$")
 
 
 def field(key: str) -> Field | None:
@@ -264,7 +269,7 @@ def string_spread(EA, EI, T, L, n_elements):
 
 # --------------------------------------------------------------------------- documentation
 
-_SCENE_GROUPS = ("belt", "pulley", "tensioner", "torque", "span_load", "simulation", "initial")
+_SCENE_GROUPS = ("belt", "pulley", "tensioner", "fluctuation", "torque", "span_load", "simulation", "initial")
 
 
 def rows(groups=_SCENE_GROUPS) -> list[tuple[str, str, str, str]]:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from beltjax import campbell, mode_tracking
+from beltjax import campbell, mode_batch, mode_tracking
 from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 
@@ -51,7 +51,10 @@ def track_chunk(out: dict[str, np.ndarray], refs: Mapping[str, Any], modes: int)
         ref = refs.get("modal")
         n = ref[0].freqs.size if ref else modes
         Ft, mac = np.full((len(F), n), np.nan), np.full((len(F), n), np.nan)
-        for i in range(len(F)):
+        done = np.zeros(len(F), bool)
+        if ref is not None:  # every case whose match is certain at once (mode_batch), the rest one by one
+            Ft, mac, done = mode_batch.match(F, W, own, ref[0].W)
+        for i in np.flatnonzero(~done):
             if not (np.all(np.isfinite(F[i])) and np.all(np.isfinite(W[i]))):
                 continue
             if ref is None:

@@ -71,6 +71,13 @@ def scene(d, *changes, base=T200):
     return write(d, "scene.toml", edit(base, *changes))
 
 
+def fead_trace(d, csv: str) -> str:
+    """The eight-pulley drive with its crank fluctuation read from the trace ``csv`` (crank.csv)."""
+    write(d, "crank.csv", csv)
+    return write(d, "scene.toml", (SCENES / "fead_8pulley.toml").read_text()
+                 + '\n[[fluctuation]]\npulley = "crank"\nfile = "crank.csv"\n')
+
+
 def bench(d, *changes):
     return scene(d, *changes, base=BENCH)
 
@@ -229,6 +236,19 @@ CASES = [
          lambda d: ["statics", bench(d, ("arm_angle_deg = 46.5", "arm_angle_deg = 46.5\nstop_min_deg = 50.0\n"
                                                                  "stop_max_deg = 60.0"))],
          "tensioner.stop_min_deg", "do not contain"),
+    case("scene-fluctuation-on-free-pulley", "`statics`: `[[fluctuation]] pulley = \"ac\"` (8-pulley drive)",
+         "a crank order on an accessory (only the driven drive pulley's motion fluctuates)",
+         lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[fluctuation]]\npulley = "ac"\norder = 2.0\n'
+                                                       'amplitude_deg = 0.5\n')],
+         "fluctuation[2].pulley", "not the driven drive pulley"),
+    case("scene-crank-trace-one-sample", "`statics`: a crank speed trace of one sample",
+         "a measured trace too short to be a cycle",
+         lambda d: ["statics", fead_trace(d, "angle_deg,speed_rpm\n0.0,800.0\n")],
+         "fluctuation[2].file", "1 sample"),
+    case("scene-crank-trace-time-backwards", "`statics`: a crank speed trace whose time goes back",
+         "non-monotonic time",
+         lambda d: ["statics", fead_trace(d, "time_s,speed_rpm\n0.0,800\n0.02,801\n0.01,800\n0.03,799\n0.04,800\n")],
+         "fluctuation[2].file", "must increase"),
     case("scene-tensioner-cm-beyond-arm", "`statics`: `arm_cm_distance = 0.2` (arm 0.094 m)",
          "centre of mass beyond the arm",
          lambda d: ["statics", bench(d, ("pulley_inertia = 0.1806e-3", "pulley_inertia = 0.1806e-3\n"

@@ -62,6 +62,9 @@ class Effect(eqx.Module):
                 owners = [("belt", scene.belt)]
             elif group == "pulley":
                 owners = [(f"pulley[{i}]", p) for i, p in enumerate(scene.pulleys)]
+            elif group == "fluctuation":
+                owners = [(x.key or f"fluctuation[{i}]", x) for i, x in enumerate(scene.fluctuations)]
+                attr = "rate" if attr in ("order", "frequency_hz") else attr
             else:
                 owners = [(group, getattr(scene, group))] if getattr(scene, group) is not None else []
             for prefix, obj in owners:
@@ -94,9 +97,10 @@ class Effect(eqx.Module):
         ``angle`` (n,) rad."""
         return pos
 
-    def drive_angle(self, angle, pulley, t):
-        """The drive pulley's angle (rad) at time t (s) with this effect."""
-        return angle
+    def drive_angle(self, angle, pulley, t, scene: Scene):
+        """What this effect adds to the drive pulley's angle (rad) at time t (s), ``angle`` its
+        mean rotation (rad); None for nothing."""
+        return None
 
 
 @functools.lru_cache(maxsize=None)
@@ -251,14 +255,19 @@ class Unbalance(Effect):
 
 
 class SpeedFluctuation(Effect):
-    """A harmonic fluctuation A sin(2 pi f t) of a driven pulley's angle (deg, Hz)."""
+    """The drive pulley's angle fluctuation: its harmonic A sin(2 pi f t) (fluctuation_amplitude_deg,
+    fluctuation_frequency_hz) and the scene's [[fluctuation]] orders and frequencies
+    (:class:`beltjax.scene.spec.Fluctuation`: orders follow the mean rotation)."""
 
     name: ClassVar[str] = "speed_fluctuation"
 
-
-    def drive_angle(self, angle, pulley, t):
+    def drive_angle(self, angle, pulley, t, scene):
         A = jnp.deg2rad(pulley.fluctuation_amplitude_deg)
-        return angle + A * jnp.sin(2 * jnp.pi * pulley.fluctuation_frequency_hz * t)
+        out = A * jnp.sin(2 * jnp.pi * pulley.fluctuation_frequency_hz * t)
+        for x in scene.fluctuations:
+            if x.pulley == pulley.name:
+                out = out + x.angle(angle, t)
+        return out
 
 
 #: every effect module, by the name a scene lists
@@ -322,11 +331,14 @@ class Effects(eqx.Module):
             pos = x.body_positions(pos, angle, scene, inst)
         return pos
 
-    def drive_angle(self, angle, pulley, t):
-        """The drive pulley's angle (rad) at time t with the listed effects."""
+    def drive_angle(self, angle, pulley, t, scene):
+        """The drive pulley's angle (rad) at time t with the listed effects (``angle``: its mean
+        rotation, rad)."""
+        out = angle
         for x in self.listed:
-            angle = x.drive_angle(angle, pulley, t)
-        return angle
+            d = x.drive_angle(angle, pulley, t, scene)
+            out = out if d is None else out + d
+        return out
 
     def unlisted_parameters(self, scene: Scene) -> list[tuple[str, str]]:
         """(key, effect) of every parameter given while its effect is not listed."""

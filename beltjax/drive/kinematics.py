@@ -63,7 +63,7 @@ def belt_travel(scene: Scene, t):
         t_star = (wT - w0) / jnp.where(a == 0.0, 1.0, a)
         tau = jnp.minimum(t, t_star)
         angle = w0 * tau + 0.5 * a * tau**2 + wT * (t - tau)
-    angle = effects_of(scene).drive_angle(angle, p, t)
+    angle = effects_of(scene).drive_angle(angle, p, t, scene)
     return p.radius * angle
 
 

@@ -12,7 +12,8 @@ import jax.numpy as jnp
 from beltjax import geometry, textfile
 from beltjax.tomltable import describe
 from beltjax.scene.spec import Scene, TENSIONER
-from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_initial, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _table
+from beltjax.scene import fluctuations as fluctuation_tables
+from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_initial, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
 
 
 def _key_for(route_idx, scene_names, order):
@@ -99,6 +100,15 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
     free_names = [n for n in order if n == TENSIONER or not next(p for p in pulleys if p.name == n).driven]
     N = model.elements_per_span
     torques = _parse_torques(data["torque"], free_names, source) if "torque" in data else ()
+    fluctuations = ()
+    if "fluctuation" in data:
+        if not isinstance(data["fluctuation"], list):
+            _fail("fluctuation", f"expected an array of tables [[fluctuation]], got {describe(data['fluctuation'])}",
+                  source)
+        dp = pulleys[drive]
+        base = os.path.dirname(os.path.abspath(source)) if os.path.isfile(source) else os.getcwd()
+        fluctuations = fluctuation_tables.parse(data["fluctuation"], (dp.name, dp.driven, float(dp.speed_rpm)), base,
+                                                _table, _num, source)
     span_loads = (
         _parse_span_loads(data["span_load"], spans, N, model.fidelity, source) if "span_load" in data else ()
     )
@@ -114,6 +124,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         description=description,
         torques=torques,
         span_loads=span_loads,
+        fluctuations=fluctuations,
         initial=initial,
         simulation=simulation,
     )

@@ -34,7 +34,8 @@ _vec = schema.read_vector
 
 
 _TOP_KEYS = (
-    "description", "belt", "pulley", "tensioner", "route", "model", "torque", "span_load", "initial", "simulation"
+    "description", "belt", "pulley", "tensioner", "route", "model", "fluctuation", "torque", "span_load", "initial",
+    "simulation"
 )
 
 

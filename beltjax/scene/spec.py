@@ -185,6 +185,29 @@ class Torque(eqx.Module):
     t_end_s: jax.Array | None
 
 
+class Fluctuation(eqx.Module):
+    """One harmonic of the drive pulley's angle fluctuation (effect ``speed_fluctuation``).
+
+    per "rev": amplitude_deg sin(rate alpha + phase), rate an order (cycles per revolution) and
+    alpha the pulley's mean rotation since t = 0 (rad), so it follows the speed in run-ups;
+    per "s": amplitude_deg sin(2 pi rate t + phase), rate a frequency (Hz).  A measured speed
+    trace is read into such harmonics (``file``: where from, for reports; ``key``: the table).
+    """
+
+    pulley: str = eqx.field(static=True)
+    per: str = eqx.field(static=True)
+    rate: jax.Array
+    amplitude_deg: jax.Array
+    phase_deg: jax.Array
+    file: str = eqx.field(static=True, default="")
+    key: str = eqx.field(static=True, default="")  # the scene-file table, e.g. "fluctuation[1]"
+
+    def angle(self, alpha, t):
+        """The fluctuation (rad) at mean rotation alpha (rad) and time t (s)."""
+        x = self.rate * alpha if self.per == "rev" else 2 * jnp.pi * self.rate * t
+        return jnp.deg2rad(self.amplitude_deg) * jnp.sin(x + jnp.deg2rad(self.phase_deg))
+
+
 class SpanLoad(eqx.Module):
     """A harmonic force (N) on an interior node of a span, normal to the installed span
     (positive to the left of the belt's travel): F(t) = amplitude_N sin(2 pi frequency_hz t
@@ -237,6 +260,7 @@ class Scene(eqx.Module):
     description: str = eqx.field(static=True, default="")
     torques: tuple[Torque, ...] = ()
     span_loads: tuple[SpanLoad, ...] = ()
+    fluctuations: tuple[Fluctuation, ...] = ()
     initial: Initial = Initial()
     simulation: Simulation = Simulation()
 

@@ -244,14 +244,21 @@ def _matrix(values: Mapping[str, np.ndarray], keys: tuple[str, ...], size: int) 
     X = np.stack([np.asarray(values[k], dtype=float) for k in keys], axis=1)
     return np.concatenate([X, np.repeat(X[-1:], size - len(X), axis=0)]) if len(X) < size else X
 
-def _run_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options,
-               size: int, devices: tuple | None) -> dict[str, np.ndarray]:
-    """One chunk (<= size cases), padded to ``size``; cases whose statics did not converge are
-    run again with speed stepping (statics.RETRY_STEPS), as :func:`beltjax.statics.analyse_statics` does."""
+def _launch_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options, size: int,
+                  devices: tuple | None):
+    """Start one chunk (<= size cases, padded to ``size``) on the device; returns what
+    :func:`_collect_chunk` needs (JAX dispatches asynchronously: the host is free meanwhile)."""
     keys = tuple(sorted(values))
-    X = _matrix(values, keys, size)
+    return keys, values, _batch_fn(opts, devices, keys)(scene, _matrix(values, keys, size), rpm)
+
+
+def _collect_chunk(scene: Scene, launched, rpm: np.ndarray, opts: _Options, size: int,
+                   devices: tuple | None) -> dict[str, np.ndarray]:
+    """The outputs of a launched chunk as numpy; cases whose statics did not converge are run
+    again with speed stepping (statics.RETRY_STEPS), as :func:`beltjax.statics.analyse_statics` does."""
+    keys, values, raw = launched
     n = len(next(iter(values.values())))
-    out = {k: np.array(np.asarray(a)[:n]) for k, a in _batch_fn(opts, devices, keys)(scene, X, rpm).items()}
+    out = {k: np.array(np.asarray(a)[:n]) for k, a in raw.items()}
     again = np.flatnonzero(out["code"] == _CODE["not_converged"])
     if again.size:
         fn8 = _batch_fn(dataclasses.replace(opts, steps=statics.RETRY_STEPS), devices, keys)
@@ -260,15 +267,31 @@ def _run_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, 
             out[k][again] = np.asarray(redo[k])[: again.size]
     return out
 
+
+def _run_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options,
+               size: int, devices: tuple | None) -> dict[str, np.ndarray]:
+    """One chunk (<= size cases), padded to ``size``, its outputs as numpy (with the retry)."""
+    return _collect_chunk(scene, _launch_chunk(scene, values, rpm, opts, size, devices), rpm, opts, size, devices)
+
 def _slices(n: int, size: int) -> list[slice]:
     return [slice(s, min(s + size, n)) for s in range(0, n, size)]
 
 def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int,
                devices: tuple | None, progress, post=lambda r: r) -> list[dict]:
-    """The chunks one after the other in this process (``post`` applied to each chunk's outputs)."""
+    """The chunks one after the other in this process (``post`` applied to each chunk's outputs).
+    On accelerators the next chunk is launched before this one's outputs are collected and
+    post-processed, so that the host's work (the mode tracking) overlaps the device's; on CPU one
+    computation at a time (two in flight on XLA's one-thread CPU pool could wait on each other:
+    :mod:`beltjax.runtime`)."""
     results, done, n = [], 0, sum(len(next(iter(c.values()))) for c in chunks)
-    for c in chunks:
-        results.append(post(_run_chunk(scene, c, rpm, opts, size, devices)))
+    ahead = (devices or tuple(jax.local_devices()[:1]))[0].platform != "cpu"
+    pending = _launch_chunk(scene, chunks[0], rpm, opts, size, devices) if chunks else None
+    for i, c in enumerate(chunks):
+        if pending is None:
+            pending = _launch_chunk(scene, c, rpm, opts, size, devices)
+        nxt = _launch_chunk(scene, chunks[i + 1], rpm, opts, size, devices) if ahead and i + 1 < len(chunks) else None
+        results.append(post(_collect_chunk(scene, pending, rpm, opts, size, devices)))
+        pending = nxt
         done += len(next(iter(c.values())))
         if progress is not None:
             progress(done, n)

@@ -1,0 +1,137 @@
+"""The ``[[fluctuation]]`` tables of a scene: the drive pulley's angle fluctuation as any list of
+orders (or fixed frequencies), or a measured speed trace read into orders.
+
+Each table is one harmonic of the driven drive pulley's angle (the ``speed_fluctuation`` effect)::
+
+    [[fluctuation]]
+    pulley = "crank"
+    order = 2.0            # cycles per revolution (it follows the speed in run-ups), or
+    # frequency_hz = 30.0  #   a fixed frequency (Hz)
+    amplitude_deg = 0.6    # deg
+    phase_deg = 0.0        # deg, at the start of the run
+
+or a measured trace of one cycle, repeated (the harmonics of its Fourier series)::
+
+    [[fluctuation]]
+    pulley = "crank"
+    file = "crank_speed.csv"   # columns angle_deg (crank angle) or time_s, and speed_rpm; the
+                               #   last sample closes the cycle (its angle or time is the first's
+                               #   plus one cycle)
+    harmonics = 24             # harmonics of the cycle kept (default 24)
+
+A trace against the crank angle gives orders k 360 / C (C the cycle in degrees: 720 for a
+four-stroke engine's two revolutions), with the angle fluctuation's amplitude integrated from
+the relative speed (d(delta theta)/d alpha = omega / omega_mean - 1): it scales with the speed, as
+orders do.  A trace against time gives frequencies k / T; its mean speed must be the pulley's
+``speed_rpm`` (within 2 %).  The cycle starts at the run's start.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from beltjax import textfile
+from beltjax.scene.spec import Fluctuation
+
+KEYS = ("pulley", "order", "frequency_hz", "amplitude_deg", "phase_deg", "file", "harmonics")
+#: harmonics of a trace kept by default
+HARMONICS = 24
+#: samples of the uniform grid a trace is resampled to (at least 4 per harmonic)
+GRID = 1024
+#: a time trace's mean speed must be the pulley's speed to this fraction
+SPEED_TOLERANCE = 0.02
+
+
+def parse(data, drive, base: str, table, num, source) -> tuple[Fluctuation, ...]:
+    """The scene's fluctuations from the ``[[fluctuation]]`` array ``data``; ``drive`` the drive
+    pulley (its name, whether driven, its speed_rpm), ``base`` the folder a trace's file is
+    relative to; ``table`` / ``num`` the scene's table and number readers."""
+    name, driven, rpm = drive
+    out = []
+    for i, d in enumerate(data):
+        t = table(d, f"fluctuation[{i}]", source, KEYS)
+        pulley = t.string("pulley")
+        if pulley != name or not driven:
+            t.fail("pulley", f"{pulley!r} is not the driven drive pulley (only a prescribed motion fluctuates; "
+                   f"here {name!r}{'' if driven else ', not driven'})")
+        if t.has("file"):
+            for k in ("order", "frequency_hz", "amplitude_deg", "phase_deg"):
+                if t.has(k):
+                    t.fail(k, "a trace (file) gives its own harmonics: leave this key out")
+            n = t.integer("harmonics", required=False, default=HARMONICS, minimum=1, maximum=GRID // 4)
+            out += _trace(t, pulley, os.path.join(base, t.string("file", nonempty=True)), n, rpm, f"fluctuation[{i}]")
+            continue
+        if t.has("harmonics"):
+            t.fail("harmonics", "only a trace (file) has harmonics")
+        if t.has("order") == t.has("frequency_hz"):
+            t.fail("order", "give exactly one of order (cycles per revolution) and frequency_hz")
+        per = "rev" if t.has("order") else "s"
+        rate = num(t, "order" if per == "rev" else "frequency_hz", "fluctuation")
+        if rate <= 0:
+            t.fail("order" if per == "rev" else "frequency_hz", f"must be > 0, got {rate!r}")
+        out.append(Fluctuation(pulley=pulley, per=per, rate=_arr(rate),
+                               amplitude_deg=_arr(num(t, "amplitude_deg", "fluctuation")),
+                               phase_deg=_arr(num(t, "phase_deg", "fluctuation", required=False, default=0.0)),
+                               key=f"fluctuation[{i}]"))
+    return tuple(out)
+
+
+def _arr(x):
+    import jax.numpy as jnp
+
+    return jnp.asarray(x, dtype=jnp.float64)
+
+
+def _trace(t, pulley: str, path: str, harmonics: int, rpm: float, key: str) -> list[Fluctuation]:
+    """The harmonics of a measured speed trace (see the module docstring)."""
+
+    def fail(_key, msg):
+        t.fail("file", f"{os.path.basename(path)}: {msg}")
+
+    text = textfile.read_text(path, "csv", fail)
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        fail("file", "no header")
+    head = [h.strip() for h in lines[0].split(",")]
+    x_name = next((h for h in ("angle_deg", "time_s") if h in head), None)
+    if x_name is None or "speed_rpm" not in head:
+        fail("file", f"needs the columns angle_deg (or time_s) and speed_rpm, has {', '.join(head)}")
+    ix, iy = head.index(x_name), head.index("speed_rpm")
+    try:
+        rows = np.array([[float(c) for c in ln.split(",")] for ln in lines[1:]], dtype=float).reshape(-1, len(head))
+    except ValueError:
+        fail("file", "a value that is not a number, or a row with another number of columns")
+    x, y = rows[:, ix], rows[:, iy]
+    if len(x) < 4:
+        fail("file", f"{len(x)} sample{'s' if len(x) != 1 else ''}: a cycle needs at least 4")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        fail("file", "a value that is not finite")
+    if np.any(np.diff(x) <= 0):
+        j = int(np.flatnonzero(np.diff(x) <= 0)[0])
+        fail("file", f"{x_name} must increase from sample to sample (row {j + 2} to {j + 3}: {float(x[j])!r} then {float(x[j + 1])!r})")
+    if np.any(y <= 0):
+        fail("file", "speed_rpm must be > 0 (in the belt's direction of travel)")
+    if harmonics > (len(x) - 1) // 2:
+        t.fail("harmonics", f"{harmonics} harmonics need at least {2 * harmonics + 1} samples, the trace has {len(x)}")
+    cycle = x[-1] - x[0]
+    grid = x[0] + cycle * np.arange(GRID) / GRID
+    w = np.interp(grid, x, y)
+    mean = float(np.mean(w))
+    R = 2.0 * np.fft.rfft(w / mean - 1.0)[1:harmonics + 1] / GRID  # relative speed: sum |R_k| cos(k phi + arg R_k)
+    k = np.arange(1, harmonics + 1)
+    if x_name == "angle_deg":
+        per, rate = "rev", k * 360.0 / cycle
+        amp = np.abs(R) / rate  # rad: the integral of the relative speed over the crank angle
+    else:
+        if abs(mean / abs(rpm) - 1.0) > SPEED_TOLERANCE if rpm else True:
+            fail("file", f"the trace's mean speed {mean:.6g} rpm is not the pulley's speed_rpm {abs(rpm)!r} "
+                         f"(within {100 * SPEED_TOLERANCE:g} %): a trace against time carries its own speed")
+        per, rate = "s", k / cycle
+        amp = (mean * 2 * math.pi / 60.0) * np.abs(R) / (2 * math.pi * rate)
+    phase = np.degrees(np.angle(R))  # the integral of cos(x + psi) is sin(x + psi)
+    name = os.path.basename(path)
+    return [Fluctuation(pulley=pulley, per=per, rate=_arr(r), amplitude_deg=_arr(math.degrees(a)), phase_deg=_arr(p),
+                        file=name, key=key) for r, a, p in zip(rate, amp, phase)]

@@ -1,0 +1,136 @@
+"""The drive pulley's angle fluctuation as a list of orders, fixed frequencies or a measured speed
+trace ([[fluctuation]], beltjax.scene.fluctuations), through the kinematic map into transients."""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import re
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from beltjax import drive, excitation, transient
+from beltjax.errors import BeltjaxError
+from beltjax.scene import loads_scene
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+# the eight-pulley drive without its [[fluctuation]] tables (each test gives its own)
+FEAD = re.sub(r"\[\[fluctuation\]\][^\[]*", "", (ROOT / "scenes" / "fead_8pulley.toml").read_text())
+W = 800 * 2 * math.pi / 60  # the drive's idle speed, rad/s
+
+
+def _scene(tables: str, extra_crank: str = "") -> str:
+    text = FEAD
+    if extra_crank:
+        text = text.replace('name = "crank"', 'name = "crank"\n' + extra_crank, 1)
+    return text + "\n" + tables
+
+
+def _order(n, amp, phase=0.0, pulley="crank"):
+    return f'[[fluctuation]]\npulley = "{pulley}"\norder = {n}\namplitude_deg = {amp}\nphase_deg = {phase}\n'
+
+
+def _fluct(scene, t):
+    """The drive pulley's angle less its mean rotation (rad) at times t."""
+    R = float(scene.pulley("crank").radius)
+    return np.array([float(drive.belt_travel(scene, jnp.float64(x))) / R - W * x for x in t])
+
+
+def test_second_order_is_the_pulley_harmonic():
+    """Order 2 at 800 rpm is the pulley's own 26.667 Hz harmonic: the same kinematic map."""
+    ts = np.linspace(0.0, 0.2, 37)
+    a = loads_scene(_scene("", extra_crank=f"fluctuation_amplitude_deg = 0.5\nfluctuation_frequency_hz = {2 * 800 / 60!r}"))
+    b = loads_scene(_scene(_order(2.0, 0.5)))
+    assert np.allclose(_fluct(a, ts), _fluct(b, ts), rtol=0, atol=1e-12)
+
+
+def test_orders_sum_and_follow_the_speed_in_a_run_up():
+    """Several orders add; in a run-up each follows the mean rotation (not a fixed frequency)."""
+    run_up = "acceleration_rpm_per_s = 3000.0\ntarget_speed_rpm = 3000.0"
+    sc = loads_scene(_scene(_order(2.0, 0.5) + _order(4.0, 0.1, 30.0), extra_crank=run_up))
+    ts = np.linspace(0.0, 0.5, 41)
+    R = float(sc.pulley("crank").radius)
+    a = 3000.0 * 2 * math.pi / 60
+    alpha = W * ts + 0.5 * a * ts**2  # the mean rotation (below the target speed)
+    got = np.array([float(drive.belt_travel(sc, jnp.float64(x))) / R for x in ts]) - alpha
+    want = math.radians(0.5) * np.sin(2 * alpha) + math.radians(0.1) * np.sin(4 * alpha + math.radians(30.0))
+    assert np.allclose(got, want, rtol=0, atol=1e-11)
+
+
+def _trace_csv(tmp_path, cycle_deg=720.0, n=721, orders=((2.0, 0.6, 20.0), (4.0, 0.15, -40.0)), x="angle_deg",
+               rows=None):
+    alpha = np.linspace(0.0, cycle_deg, n)
+    rel = sum(k * math.radians(A) * np.cos(k * np.radians(alpha) + math.radians(p)) for k, A, p in orders)
+    rpm = 800.0 * (1.0 + rel)
+    body = rows if rows is not None else "".join(f"{a:.17g},{r:.17g}\n" for a, r in zip(alpha, rpm))
+    (tmp_path / "crank.csv").write_text(f"{x},speed_rpm\n" + body)
+    scene_path = tmp_path / "scene.toml"
+    scene_path.write_text(_scene('[[fluctuation]]\npulley = "crank"\nfile = "crank.csv"\n'))
+    return scene_path
+
+
+def test_trace_against_crank_angle_gives_its_orders(tmp_path):
+    """A measured speed trace (one 720 deg cycle) is read into orders k 360 / 720: the 2nd and 4th
+    orders it was made of come back with their angle amplitudes and phases; the rest are ~0."""
+    from beltjax.scene import load_scene
+
+    sc = load_scene(_trace_csv(tmp_path))
+    by_order = {round(float(x.rate), 6): x for x in sc.fluctuations}
+    assert len(sc.fluctuations) == 24 and min(by_order) == 0.5 and all(x.file == "crank.csv" for x in sc.fluctuations)
+    for k, A, p in ((2.0, 0.6, 20.0), (4.0, 0.15, -40.0)):
+        assert float(by_order[k].amplitude_deg) == pytest.approx(A, rel=1e-3)
+        assert float(by_order[k].phase_deg) == pytest.approx(p, abs=0.05)
+    others = [float(x.amplitude_deg) for r, x in by_order.items() if r not in (2.0, 4.0)]
+    assert max(others) < 1e-3 * 0.6
+
+
+def test_fixed_frequency_entry_and_forcing_check():
+    """A frequency_hz entry is a fixed-frequency harmonic; orders enter the step's resolution check
+    at the run's highest speed, so one the step cannot resolve is refused naming its key."""
+    sc = loads_scene(_scene('[[fluctuation]]\npulley = "crank"\nfrequency_hz = 40.0\namplitude_deg = 0.2\n'))
+    ts = np.linspace(0.0, 0.1, 11)
+    assert np.allclose(_fluct(sc, ts), math.radians(0.2) * np.sin(2 * math.pi * 40.0 * ts), atol=1e-12)
+    fast = loads_scene(_scene(_order(400.0, 0.01)) + '\n[simulation]\nsolver = "generalized_alpha"\ndt_s = 1e-3\n')
+    keys = [f.key for f in excitation.forcing(fast, 0.1)]
+    assert "fluctuation[0].order" in keys
+    with pytest.raises(BeltjaxError, match=r"fluctuation\[0\]\.order"):
+        transient.simulate(fast, 0.1)
+
+
+@pytest.mark.parametrize("tables, key", [
+    (_order(2.0, 0.5, pulley="alternator"), "fluctuation[0].pulley"),
+    ('[[fluctuation]]\npulley = "crank"\norder = 2.0\nfrequency_hz = 3.0\namplitude_deg = 0.1\n', "fluctuation[0].order"),
+    (_order(-2.0, 0.5), "fluctuation[0].order"),
+    (_order(2.0, -0.5), "fluctuation[0].amplitude_deg"),
+    ('[[fluctuation]]\npulley = "crank"\norder = 2.0\namplitude_deg = 0.1\nharmonics = 3\n', "fluctuation[0].harmonics"),
+])
+def test_bad_fluctuation_tables_name_the_key(tables, key):
+    with pytest.raises(BeltjaxError) as e:
+        loads_scene(_scene(tables))
+    assert key in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("rows, x, cause", [
+    ("0.0,800.0\n", "angle_deg", "1 sample"),
+    ("0.0,800.0\n10.0,801.0\n5.0,800.0\n20.0,799.0\n720.0,800.0\n", "angle_deg", "must increase"),
+    ("0.0,800.0\n0.01,801.0\n0.01,800.0\n0.03,799.0\n0.04,800.0\n", "time_s", "must increase"),
+    ("0.0,800.0\n0.01,801.0\n0.02,800.0\n0.03,799.0\n0.04,800.0\n0.05,800.0\n", "time_s", None),
+])
+def test_bad_traces_name_the_file(tmp_path, rows, x, cause):
+    from beltjax.scene import load_scene
+
+    path = _trace_csv(tmp_path, rows=rows, x=x)
+    if cause is None:  # a good time trace at the pulley's speed: accepted (harmonics limited by its samples)
+        path.write_text(path.read_text() + "harmonics = 2\n")
+        assert len(load_scene(path).fluctuations) == 2
+        return
+    with pytest.raises(BeltjaxError) as e:
+        load_scene(path)
+    assert "fluctuation[0].file" in str(e.value) and cause in str(e.value)
+
+
+def test_orders_need_their_effect():
+    with pytest.raises(BeltjaxError, match="speed_fluctuation"):
+        loads_scene(_scene(_order(2.0, 0.5)).replace('"speed_fluctuation"]', "]"))
