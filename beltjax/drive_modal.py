@@ -69,12 +69,13 @@ def linearise(qi, scene: Scene, inst, speed=0.0):
 def rigid_mode(scene: Scene, inst):
     """The belt's rigid slide in independent coordinates (1 m of belt along the route).
 
-    Every free pulley turns by 1 / (s R) rad, every interior span node moves 1 m along
+    Every free pulley (and a decoupler's rotor) turns by 1 / (s R) rad, every interior span node moves 1 m along
     its span; with straight spans K v = 0 and G v = 0 exactly.
     """
     free = drive.is_free(scene)
     senses = np.asarray(scene.route.senses)
     rigid = [1.0 / (senses[i] * inst.radii[i]) for i, f in enumerate(free) if f]
+    rigid += [1.0 / (senses[i] * inst.radii[i]) for i in drive.drive_of(scene).rotors]  # with their pulleys
     rigid += [jnp.zeros(())] * drive.layout_of(scene).coordinates  # the arm does not move
     return jnp.concatenate([jnp.stack(rigid), drive.spans_of(scene).rigid_slide(inst.span_tangent)])
 

@@ -139,6 +139,8 @@ FIELDS: dict[str, Field] = {
     "fluctuation.frequency_hz": Field("Hz", 0.0, 1e6, "far above any belt-drive excitation", ">0", "speed_fluctuation"),
     "fluctuation.amplitude_deg": Field("deg", 0.0, 360.0, "a full turn", ">=0", "speed_fluctuation"),
     "fluctuation.phase_deg": Field("deg", -3600.0, 3600.0, "ten turns either way", "", "speed_fluctuation"),
+    "decoupler.rotor_inertia": Field("kg m^2", 1e-9, 1e6, "an alternator rotor has about 3e-3", ">0"),
+    "decoupler.stiffness": Field("N m/rad", 1e-6, 1e9, "decoupler springs have 10-100 N m/rad", ">0"),
     "torque.mean_Nm": _MOMENT,
     "torque.amplitude_Nm": _MOMENT,
     "torque.frequency_hz": _FREQ,
@@ -168,7 +170,7 @@ FIELDS: dict[str, Field] = {
                        ">=0"),
 }
 
-_INDEXED = re.compile(r"^(pulley|torque|span_load|fluctuation)\[\d+\]\.(.+)$")
+_INDEXED = re.compile(r"^(pulley|torque|span_load|fluctuation|decoupler)\[\d+\]\.(.+)$")
 
 
 def field(key: str) -> Field | None:
@@ -269,7 +271,8 @@ def string_spread(EA, EI, T, L, n_elements):
 
 # --------------------------------------------------------------------------- documentation
 
-_SCENE_GROUPS = ("belt", "pulley", "tensioner", "fluctuation", "torque", "span_load", "simulation", "initial")
+_SCENE_GROUPS = ("belt", "pulley", "tensioner", "fluctuation", "decoupler", "torque", "span_load", "simulation",
+                 "initial")
 
 
 def rows(groups=_SCENE_GROUPS) -> list[tuple[str, str, str, str]]:

@@ -93,7 +93,7 @@ def _rigid_index(scene: Scene) -> dict[str, int]:
             idx[name] = k
             k += 1
     if scene.tensioner is not None:
-        idx["arm"] = k
+        idx["arm"] = k + len(scene.decouplers)  # after the decouplers' rotors
     return idx
 
 

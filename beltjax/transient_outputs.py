@@ -9,6 +9,7 @@ import jax.numpy as jnp
 
 from beltjax import critical, drive
 from beltjax.scene import Scene
+from beltjax.drive import couplings
 from beltjax.drive.effects import effects_of
 
 
@@ -74,6 +75,14 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     if scene.tensioner is not None:
         out["arm_angle_deg"] = jnp.rad2deg(theta)
         out["spring_moment_Nm"] = drive.spring_moment(theta, scene)
+    if scene.decouplers:  # the rotors' speeds and the decoupler springs' moments
+        rows = n + jnp.arange(len(scene.decouplers))
+        out["rotor_speeds_rpm"] = Bd[rows, 2] * 60.0 / (2 * jnp.pi)
+        routes = list(couplings.rotor_routes(scene))
+        senses = jnp.asarray([scene.route.senses[i] for i in routes], dtype=B.dtype)
+        stiff = jnp.stack([d.stiffness for d in scene.decouplers])
+        out["decoupler_moments_Nm"] = couplings.decoupler_moment(senses * (B[jnp.asarray(routes), 2] - B[rows, 2]),
+                                                                 stiff)
     nodes = output_nodes(scene)
     if nodes:
         disp = []
@@ -108,6 +117,9 @@ def _columns(scene: Scene) -> dict[str, list[str]]:
     nodes = output_nodes(scene)
     if nodes:
         cols["node_displacements_m"] = [lab for _, _, lab in nodes]
+    if scene.decouplers:
+        cols["rotor_speeds_rpm"] = [f"{d.pulley} rotor" for d in scene.decouplers]
+        cols["decoupler_moments_Nm"] = [d.pulley for d in scene.decouplers]
     return cols
 
 
@@ -122,6 +134,8 @@ UNITS = dict(
     belt_speed_m_s="m/s",
     arm_angle_deg="deg",
     spring_moment_Nm="N m",
+    rotor_speeds_rpm="rpm",
+    decoupler_moments_Nm="N m",
     node_displacements_m="m",
     friction_needed="-",
     slip_margins="-",

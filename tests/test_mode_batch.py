@@ -2,41 +2,48 @@
 
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 
+import equinox as eqx
 import numpy as np
 
-from beltjax import mode_batch, sweep
+from beltjax import mode_batch, mode_tracking, sweep, sweep_modes
 from beltjax.scene import load_scene
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def test_batched_matching_equals_the_tracker(monkeypatch):
-    """A sweep of the two-pulley bench (its transverse modes come in repeated pairs, one per
-    span, so the clusters and their Procrustes rotation are exercised) gives the same frequency
-    columns and MACs with the batched matching as with the tracker case by case, and the batch
-    takes most cases."""
+    """On a sweep of the two-pulley bench (its transverse modes come in repeated pairs, one per
+    span, so the clusters and their Procrustes rotation are exercised) the batched matching
+    takes every case and gives the tracker's frequency columns and MACs (a fresh tracker seeded
+    with the nominal's modes, one step per case)."""
     scene = load_scene(ROOT / "scenes" / "two_pulley_T200.toml")
+    scene = eqx.tree_at(lambda s: s.model, scene, dataclasses.replace(scene.model, elements_per_span=4))
     T, EI = np.meshgrid(np.linspace(150.0, 650.0, 6), np.linspace(0.02, 0.05, 4), indexing="ij")
     values = {"belt.static_tension": T.ravel(), "belt.EI": EI.ravel()}
-    taken = []
-    real = mode_batch.match
+    chunks = []
+    real = sweep_modes.track_chunk
 
-    def counting(*a, **k):
-        out = real(*a, **k)
-        taken.append(out[2])
-        return out
+    def keep(out, refs, modes):  # the raw chunk, before tracking
+        chunks.append(({k: np.array(v) for k, v in out.items()}, refs))
+        return real(out, refs=refs, modes=modes)
 
-    monkeypatch.setattr(mode_batch, "match", counting)
-    fast = sweep.evaluate(scene, values, ("statics", "modal"), modes=12, chunk=24)
-    monkeypatch.setattr(mode_batch, "match", lambda F, W, own, P: (np.full((len(F), P.shape[1]), np.nan),
-                                                                   np.full((len(F), P.shape[1]), np.nan),
-                                                                   np.zeros(len(F), bool)))
-    slow = sweep.evaluate(scene, values, ("statics", "modal"), modes=12, chunk=24)
-    done = np.concatenate(taken)
-    assert done.mean() > 0.9
-    for key in ("frequencies_hz", "mode_mac"):
-        a, b = np.asarray(fast[key]), np.asarray(slow[key])
-        assert np.array_equal(np.isnan(a), np.isnan(b)), key
-        assert np.allclose(a[~np.isnan(a)], b[~np.isnan(b)], rtol=1e-9, atol=1e-12), key
+    monkeypatch.setattr(sweep_modes, "track_chunk", keep)
+    sweep.evaluate(scene, values, ("statics", "modal"), 8, chunk=8)
+    for out, refs in chunks:
+        ref = refs["modal"][0]
+        F, W, own = out["frequencies_hz"], out["modal_W"], out["modal_owner"]
+        f, mac, done = mode_batch.match(F, W, own, ref.W)
+        assert done.all()
+        for i in range(len(F)):
+            md = mode_tracking.mode_basis(F[i], W[i], own[i])
+            index, m = mode_tracking.Tracker(ref).step(md)
+            n = ref.freqs.size
+            found = index[:n] >= 0
+            want = np.full(n, np.nan)
+            want[found] = md.freqs[index[:n][found]]
+            assert np.array_equal(np.isnan(f[i]), np.isnan(want))
+            assert np.allclose(f[i][found], want[found], rtol=1e-12)
+            assert np.allclose(mac[i][found], m[:n][found], rtol=1e-9, atol=1e-12)

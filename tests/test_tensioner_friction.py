@@ -29,10 +29,11 @@ def _pivot(Tf, a=1.0, w_r=1e-3, k=1.0, theta0_deg=0.0, stops=(None, None), ks=1e
                                  stop_stiffness=ks)
 
 
-def _oscillate(P, F, k, m, w, w_r, periods=6):
-    """The oscillator with the pivot's friction law, from Den Hartog's periodic state: the last
-    period's amplitude (m) and friction work (J)."""
-    X0, phi = pivot.den_hartog(P, F, k, m, w)
+@jax.jit
+def _solve(p):
+    """The forced Coulomb oscillator with the pivot's friction law over six periods from state
+    y0; p = (P, F, k, m, w, w_r, phi, X0): one compilation for every case."""
+    P, F, k, m, w, w_r, phi, X0 = p
     t = _pivot(F, w_r=w_r)
 
     def f(time, y, args):
@@ -40,12 +41,20 @@ def _oscillate(P, F, k, m, w, w_r, periods=6):
         fr = pivot.friction_moment(v, x, t)
         return jnp.stack([v, (P * jnp.cos(w * time + phi) - k * x + fr) / m, -fr * v])
 
-    T = 2 * math.pi / w
-    ts = jnp.linspace((periods - 1) * T, periods * T, 2001)
-    sol = diffrax.diffeqsolve(diffrax.ODETerm(f), diffrax.Dopri8(), 0.0, periods * T, T / 200,
-                              jnp.array([X0, 0.0, 0.0]), saveat=diffrax.SaveAt(ts=ts),
+    T = 2 * jnp.pi / w
+    ts = 6 * T * jnp.linspace(5.0 / 6.0, 1.0, 2001)
+    sol = diffrax.diffeqsolve(diffrax.ODETerm(f), diffrax.Dopri8(), 0.0, 6 * T, T / 200,
+                              jnp.stack([X0, 0.0, 0.0]), saveat=diffrax.SaveAt(ts=ts),
                               stepsize_controller=diffrax.PIDController(rtol=1e-10, atol=1e-12), max_steps=200000)
-    x, e = np.asarray(sol.ys[:, 0]), np.asarray(sol.ys[:, 2])
+    return sol.ys
+
+
+def _oscillate(P, F, k, m, w, w_r):
+    """The oscillator from Den Hartog's periodic state: (exact amplitude, the last period's
+    amplitude, its friction work (J))."""
+    X0, phi = pivot.den_hartog(P, F, k, m, w)
+    ys = np.asarray(_solve(jnp.array([P, F, k, m, w, w_r, phi, X0])))
+    x, e = ys[:, 0], ys[:, 2]
     return X0, 0.5 * (x.max() - x.min()), e[-1] - e[0]
 
 

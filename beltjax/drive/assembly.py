@@ -39,6 +39,7 @@ class Drive:
     senses: tuple[int, ...]
     free: tuple[bool, ...]
     drive_pulley: int
+    rotors: tuple[int, ...] = ()  # route index of each decoupled pulley (its rotor is a body)
 
     @property
     def span_names(self) -> list[str]:
@@ -48,13 +49,15 @@ class Drive:
 
     @property
     def body_names(self) -> list[str]:
-        """Rigid bodies in the order of the full coordinates: route entries, then the layout's."""
-        return list(self.route) + list(self.layout.body_names)
+        """Rigid bodies in the order of the full coordinates: route entries, decoupler rotors,
+        then the layout's."""
+        return list(self.route) + [f"{self.route[i]} rotor" for i in self.rotors] + list(self.layout.body_names)
 
     @property
     def n_rigid(self) -> int:
-        """Independent rigid-body coordinates: free pulley angles, then the layout's (rad)."""
-        return sum(self.free) + self.layout.coordinates
+        """Independent rigid-body coordinates: free pulley angles, decoupler rotor angles, then
+        the layout's (rad)."""
+        return sum(self.free) + len(self.rotors) + self.layout.coordinates
 
     @property
     def n_independent(self) -> int:
@@ -95,7 +98,7 @@ def _key(scene) -> tuple:
     pulleys = tuple((p.name, bool(p.driven)) for p in scene.pulleys)
     r = scene.route
     return (m.fidelity, m.elements_per_span, m.bending, m.effects, r.order, r.back_side, r.direction, pulleys,
-            scene.tensioner is None)
+            scene.tensioner is None, tuple(d.pulley for d in scene.decouplers))
 
 
 #: assembled drives by structure (bounded: cleared when it grows past _CACHE_SIZE)
@@ -109,7 +112,8 @@ def _assemble(scene) -> Drive:
     driven = [p.name for p in scene.pulleys if p.driven and p.name in order]
     name = driven[0] if driven else next(p.name for p in scene.pulleys if p.name in order)
     return Drive(spans_of(scene), layout_of(scene), effects_of(scene), tuple(order),
-                 tuple(int(s) for s in scene.route.senses), free, order.index(name))
+                 tuple(int(s) for s in scene.route.senses), free, order.index(name),
+                 tuple(order.index(d.pulley) for d in scene.decouplers))
 
 
 def drive_of(scene) -> Drive:

@@ -15,7 +15,7 @@ from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, drive_pulley, element_length, n_rigid, n_span_coordinates, travel_coordinate, travel_follows_drive
 from beltjax.drive.spans import spans_of
 from beltjax.drive.effects import effects_of
-from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, full_coordinates, span_lengths_and_jacobian, split_full
+from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, rotor_angles, full_coordinates, span_lengths_and_jacobian, split_full
 from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix, mean_body_loads
 
 
@@ -199,7 +199,7 @@ def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedM
     def bodies(x, time):
         phi, theta = angles_and_arm(x, scene, inst)
         centers, _ = _centers(theta, scene, inst)
-        return _body_coordinates(phi, theta, centers, scene, inst, None if steady else time)
+        return _body_coordinates(phi, theta, centers, scene, inst, None if steady else time, rotors=rotor_angles(x, scene))
 
     b, b_dot = jax.jvp(bodies, (qi, tt), (qi_dot, one))
     _, gamma_b = jax.jvp(lambda x, time: jax.jvp(bodies, (x, time), (qi_dot, one))[1], (qi, tt), (qi_dot, one))

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 
 from beltjax.scene import ARM, TENSIONER, Scene
 from beltjax.drive.topology import Installation, body_names, element_length, span_names
+from beltjax.drive import couplings
 from beltjax.drive.effects import effects_of
 from beltjax.drive.layouts import layout_of, spring_moment  # noqa: F401
 from beltjax.drive.spans import bar_axial_force as _bar_axial_force, spans_of
@@ -33,7 +34,8 @@ def body_masses(scene: Scene, inst: Installation | None = None):
     if inst is not None:
         m_arc = scene.belt.rhoA * inst.radii * inst.wrap / inst.stretch
         vals = [v + jnp.stack([m, m, m * R**2]) for v, m, R in zip(vals, m_arc, inst.radii)]
-    return jnp.concatenate(vals + layout_of(scene).masses(scene))
+    rotors = [jnp.stack([0.0 * d.rotor_inertia, 0.0 * d.rotor_inertia, d.rotor_inertia]) for d in scene.decouplers]
+    return jnp.concatenate(vals + rotors + layout_of(scene).masses(scene))
 
 
 def full_mass_matrix(scene: Scene, inst: Installation):
@@ -78,6 +80,7 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     times the arm's speed, N m s/rad) and the [[torque]] loads (N m).
     """
     f = layout_of(scene).body_forces(jnp.zeros_like(bodies), bodies, scene)
+    f = couplings.body_forces(f, bodies, scene)  # decouplers
     fx = effects_of(scene)
     f = fx.steady_body_forces(f, body_masses(scene, inst).reshape(-1, 3), scene, inst, t is not None)  # weights
     if t is None:
@@ -85,9 +88,17 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     order = scene.route.order
     f = fx.body_forces(f, bodies, bodies_dot, scene, t)
     for load in scene.torques:
-        k = -1 if load.pulley == ARM else order.index(load.pulley)
-        f = f.at[k, 2].add(torque(load, t))
+        f = f.at[_load_row(scene, load.pulley), 2].add(torque(load, t))
     return f
+
+
+def _load_row(scene: Scene, name: str) -> int:
+    """The body row a [[torque]] on ``name`` acts on: the arm (last), a decoupled pulley's
+    rotor, else the pulley."""
+    if name == ARM:
+        return -1
+    r = couplings.load_body(scene, name)
+    return scene.route.order.index(name) if r is None else r
 
 
 def mean_body_loads(scene: Scene, inst: Installation, speed=0.0):
@@ -103,7 +114,7 @@ def mean_body_loads(scene: Scene, inst: Installation, speed=0.0):
     f = jnp.zeros((nb, 3), dtype=inst.radii.dtype)
     for load in scene.torques:
         if load.t_end_s is None:
-            f = f.at[-1 if load.pulley == ARM else order.index(load.pulley), 2].add(load.mean_Nm)
+            f = f.at[_load_row(scene, load.pulley), 2].add(load.mean_Nm)
     senses = jnp.asarray(scene.route.senses, dtype=f.dtype)
     rates = jnp.zeros_like(f).at[: len(order), 2].set(senses * speed / inst.radii)
     return effects_of(scene).body_forces(f, None, rates, scene, None)

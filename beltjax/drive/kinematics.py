@@ -13,6 +13,7 @@ from beltjax.drive.topology import Installation, drive_pulley, is_free, n_rigid,
 from beltjax.drive.layouts import layout_of
 from beltjax.drive.spans import spans_of
 from beltjax.drive.effects import effects_of
+from beltjax.drive.assembly import drive_of
 
 
 def _split(qi, scene: Scene):
@@ -100,7 +101,16 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     start, end, t_hat = _span_ends(phi, centers, radii, scene, inst, travel)
     parts = [model.nodes(start[s], end[s], t_hat[s], None if spans is None else spans[s], inst.stretch)
              for s in range(len(scene.route.order))]
-    return jnp.concatenate(parts + [_body_coordinates(phi, theta, centers, scene, inst, t, shift)])
+    return jnp.concatenate(parts + [_body_coordinates(phi, theta, centers, scene, inst, t, shift,
+                                                      rotor_angles(qi, scene))])
+
+
+def rotor_angles(qi, scene: Scene):
+    """Rotation perturbations (rad) of the decouplers' rotors (:mod:`beltjax.drive.couplings`):
+    the rigid coordinates after the free pulleys'."""
+    rigid, _ = _split(qi, scene)
+    k = sum(is_free(scene))
+    return rigid[k : k + len(scene.decouplers)]
 
 
 def _centers(theta, scene: Scene, inst: Installation, shift=None):
@@ -132,13 +142,18 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0
     return start, end, t_hat
 
 
-def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=None, shift=None):
-    """(x, y, angle) of every body, flattened (m, rad): pulleys in route order, then the arm
-    (see :func:`full_coordinates`)."""
+def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=None, shift=None, rotors=None):
+    """(x, y, angle) of every body, flattened (m, rad): pulleys in route order, the decouplers'
+    rotors (on their pulleys' centres, turning by ``rotors`` (rad) beside their nominal rolling),
+    then the arm (see :func:`full_coordinates`)."""
     senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
-    angle = phi if t is None else phi + senses * belt_travel(scene, t) / inst.radii
+    rolling = 0.0 if t is None else senses * belt_travel(scene, t) / inst.radii
+    angle = phi + rolling
     pos = effects_of(scene).body_positions(centers, angle, scene, inst)  # unbalance: centres of mass
     bodies = [jnp.concatenate([pos[i], angle[i][None]]) for i in range(len(scene.route.order))]
+    for j, i in enumerate(drive_of(scene).rotors):
+        rot = rotors[j] + (0.0 if t is None else rolling[i])
+        bodies.append(jnp.concatenate([centers[i], rot[None]]))
     return jnp.concatenate(bodies + layout_of(scene).bodies(theta, scene, shift))
 
 

@@ -13,7 +13,7 @@ from beltjax import geometry, textfile
 from beltjax.tomltable import describe
 from beltjax.scene.spec import Scene, TENSIONER
 from beltjax.scene import fluctuations as fluctuation_tables
-from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_initial, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
+from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_decouplers, _parse_initial, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
 
 
 def _key_for(route_idx, scene_names, order):
@@ -100,6 +100,8 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
     free_names = [n for n in order if n == TENSIONER or not next(p for p in pulleys if p.name == n).driven]
     N = model.elements_per_span
     torques = _parse_torques(data["torque"], free_names, source) if "torque" in data else ()
+    decouplers = _parse_decouplers(data["decoupler"], free_names, pulleys[drive].name, source) \
+        if "decoupler" in data else ()
     fluctuations = ()
     if "fluctuation" in data:
         if not isinstance(data["fluctuation"], list):
@@ -125,6 +127,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         torques=torques,
         span_loads=span_loads,
         fluctuations=fluctuations,
+        decouplers=decouplers,
         initial=initial,
         simulation=simulation,
     )

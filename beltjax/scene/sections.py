@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from beltjax import schema, tomltable
 from beltjax.ancf import BENDING_MODELS
 from beltjax.tomltable import describe
-from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initial, MAX_ELEMENTS_PER_SPAN, Model, Pulley, Route, SOLVERS, Scene, SceneError, Simulation, SpanLoad, TENSIONER, Tensioner, Torque
+from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initial, MAX_ELEMENTS_PER_SPAN, Model, Pulley, Route, SOLVERS, Scene, SceneError, Simulation, SpanLoad, TENSIONER, Tensioner, Torque, Decoupler
 
 
 def _fail(key, msg, source=""):
@@ -34,8 +34,8 @@ _vec = schema.read_vector
 
 
 _TOP_KEYS = (
-    "description", "belt", "pulley", "tensioner", "route", "model", "fluctuation", "torque", "span_load", "initial",
-    "simulation"
+    "description", "belt", "pulley", "tensioner", "route", "model", "fluctuation", "decoupler", "torque", "span_load",
+    "initial", "simulation"
 )
 
 
@@ -292,6 +292,31 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
                 t_end_s=t1,
             )
         )
+    return tuple(out)
+
+
+_DECOUPLER_KEYS = ("pulley", "rotor_inertia", "stiffness")
+
+
+def _parse_decouplers(data, free_names, drive_name, source) -> tuple[Decoupler, ...]:
+    if not isinstance(data, list):
+        _fail("decoupler", f"expected an array of tables [[decoupler]], got {describe(data)}", source)
+    out, seen = [], {}
+    for i, d in enumerate(data):
+        t = _table(d, f"decoupler[{i}]", source, _DECOUPLER_KEYS)
+        name = t.string("pulley")
+        if name not in free_names or name == TENSIONER:
+            t.fail("pulley", f"{name!r} is not a free pulley of the route (free: "
+                   f"{', '.join(n for n in free_names if n != TENSIONER) or 'none'}; a driven pulley's motion is "
+                   "prescribed)")
+        if name == drive_name:
+            t.fail("pulley", f"{name!r} is the drive pulley: its rotation carries the belt (a decoupler goes on an "
+                   "accessory)")
+        if name in seen:
+            t.fail("pulley", f"{name!r} already has a decoupler (decoupler[{seen[name]}])")
+        seen[name] = i
+        out.append(Decoupler(pulley=name, rotor_inertia=_arr(_num(t, "rotor_inertia", "decoupler")),
+                             stiffness=_arr(_num(t, "stiffness", "decoupler"))))
     return tuple(out)
 
 

@@ -208,6 +208,18 @@ class Fluctuation(eqx.Module):
         return jnp.deg2rad(self.amplitude_deg) * jnp.sin(x + jnp.deg2rad(self.phase_deg))
 
 
+class Decoupler(eqx.Module):
+    """An overrunning decoupler on a free pulley: the pulley (the scene's pulley, its own
+    inertia) and a rotor (rotor_inertia, kg m^2) joined by a spring (stiffness, N m/rad) in series
+    with a one-way clutch: the spring carries the pulley's lead over the rotor in the belt's
+    direction of travel, k max(wind-up, 0), and the rotor overruns freely when it is ahead
+    (:mod:`beltjax.drive.couplings`).  The pulley's [[torque]] loads act on the rotor."""
+
+    pulley: str = eqx.field(static=True)
+    rotor_inertia: jax.Array
+    stiffness: jax.Array
+
+
 class SpanLoad(eqx.Module):
     """A harmonic force (N) on an interior node of a span, normal to the installed span
     (positive to the left of the belt's travel): F(t) = amplitude_N sin(2 pi frequency_hz t
@@ -261,6 +273,7 @@ class Scene(eqx.Module):
     torques: tuple[Torque, ...] = ()
     span_loads: tuple[SpanLoad, ...] = ()
     fluctuations: tuple[Fluctuation, ...] = ()
+    decouplers: tuple[Decoupler, ...] = ()
     initial: Initial = Initial()
     simulation: Simulation = Simulation()
 

@@ -1,0 +1,56 @@
+"""Bodies joined to a pulley rather than to the belt: the decoupler's rotor.
+
+An overrunning alternator decoupler (:class:`beltjax.scene.spec.Decoupler`) is the pulley, a
+spring and a one-way clutch in series with the rotor.  The rotor is a body of its own (one
+rotation coordinate, its inertia ``rotor_inertia``; it shares the pulley's bearing and centre).
+The spring carries the pulley's lead over the rotor in the belt's direction of travel,
+
+    M = k max(w, 0),   w = s (theta_pulley - theta_rotor)   (s the pulley's wrap sense),
+
+on the rotor (driving it on) and -M on the pulley; when the rotor is ahead (w < 0) the clutch
+overruns and nothing is transmitted.  The law is the derivative of the potential k max(w, 0)^2 / 2,
+continuous with its first derivative (C1), so statics, modes and gradients see it; at w = 0 the
+spring counts as engaged (a clutch at rest locks on any lead): the modes of an unloaded
+decoupler are those of the engaged one.  The clutch's own drag and the spring's damping are not
+modelled.  A scene without decouplers traces none of this.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from beltjax.scene.spec import Scene
+
+
+def rotor_routes(scene: Scene) -> tuple[int, ...]:
+    """Route index of each decoupled pulley, in the order of ``scene.decouplers`` (its rotor's)."""
+    return tuple(scene.route.order.index(d.pulley) for d in scene.decouplers)
+
+
+def decoupler_moment(windup, stiffness):
+    """The decoupler spring's moment (N m) at wind-up ``windup`` (rad, the pulley's lead over
+    the rotor in the direction of travel): k w when w >= 0, else 0 (the clutch overruns)."""
+    return jnp.where(windup >= 0.0, stiffness * windup, 0.0)
+
+
+def body_forces(f, bodies, scene: Scene):
+    """``f`` (nb, 3; N, N m) plus the decouplers' moments on their pulleys and rotors; bodies
+    (nb, 3): the bodies' (x, y, angle), the rotors right after the route entries."""
+    if not scene.decouplers:
+        return f
+    n = len(scene.route.order)
+    senses = scene.route.senses
+    for j, (d, i) in enumerate(zip(scene.decouplers, rotor_routes(scene))):
+        s = float(senses[i])
+        M = decoupler_moment(s * (bodies[i, 2] - bodies[n + j, 2]), d.stiffness)
+        f = f.at[i, 2].add(-s * M).at[n + j, 2].add(s * M)
+    return f
+
+
+def load_body(scene: Scene, name: str) -> int | None:
+    """The body row a [[torque]] on ``name`` acts on: a decoupled pulley's rotor, else None (the
+    pulley's own row, or the arm's)."""
+    for j, d in enumerate(scene.decouplers):
+        if d.pulley == name:
+            return len(scene.route.order) + j
+    return None

@@ -1,0 +1,108 @@
+"""The overrunning alternator decoupler ([[decoupler]], beltjax.drive.couplings): a rotor of its
+own joined to its pulley by a spring through a one-way clutch."""
+
+from __future__ import annotations
+
+import math
+import pathlib
+
+import jax
+import numpy as np
+import pytest
+
+from beltjax import drive, drive_modal, transient
+from beltjax.errors import BeltjaxError
+from beltjax.scene import loads_scene
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+FEAD = (ROOT / "scenes" / "fead_8pulley.toml").read_text()
+J_ROTOR = 6e-3  # kg m^2
+
+
+def _with_decoupler(k: float, text: str = FEAD, pulley: str = "alternator") -> str:
+    return text + f'\n[[decoupler]]\npulley = "{pulley}"\nrotor_inertia = {J_ROTOR}\nstiffness = {k}\n'
+
+
+def _with_alternator_inertia(text: str, J: float) -> str:
+    head, block = text.split('name = "alternator"', 1)
+    before, after = block.split("inertia =", 1)
+    return head + 'name = "alternator"' + before + f"inertia = {J!r}" + after[after.index("\n"):]
+
+
+def test_a_stiff_locked_decoupler_is_the_pulley_with_the_rotors_inertia():
+    """With a very stiff spring (engaged under the alternator's load) the drive's modes about its
+    operating point are those of one alternator of pulley + rotor inertia, plus the spring's own
+    mode far above; the span tensions are the same, the spring wound up by the load over its
+    stiffness."""
+    J = float(loads_scene(FEAD).pulley("alternator").inertia)
+    merged = loads_scene(_with_alternator_inertia(FEAD, J + J_ROTOR))
+    assert float(merged.pulley("alternator").inertia) == pytest.approx(J + J_ROTOR)
+    k = 1e8
+    dec = loads_scene(_with_decoupler(k))
+
+    @jax.jit
+    def state(sc):  # the operating point and the modes about it (one compiled call per structure)
+        m = drive_modal.at_speed(sc, drive.belt_speed(sc))
+        return m, drive.span_tensions(drive.full_coordinates(m.qi, sc, m.inst), sc, m.inst)
+
+    (mm, Tm), (md, Td) = state(drive.canonical(merged)), state(drive.canonical(dec))
+    fm, fd = np.asarray(mm.freqs), np.asarray(md.freqs)
+    n = len(fm)
+    assert np.allclose(fd[:n], fm, rtol=1e-5)
+    assert fd[n] > 5 * fm[-1]  # the decoupler spring's own mode
+    assert np.allclose(Td, Tm, rtol=1e-9)
+    sd = md
+    # the rotor lags the pulley by the load over the stiffness (the load acts on the rotor)
+    load = sum(float(t.mean_Nm) for t in dec.torques if t.pulley == "alternator")
+    i = list(dec.route.order).index("alternator")
+    phis, _ = drive.angles_and_arm(sd.qi, dec, sd.inst)
+    psi = drive.rotor_angles(sd.qi, dec)
+    windup = dec.route.senses[i] * (float(phis[i]) - float(psi[0]))
+    assert windup == pytest.approx(abs(load) / k, rel=1e-6)
+
+
+@pytest.fixture(scope="module")
+def overrun():
+    """The eight-pulley drive at idle with a strong 2nd order (1.5 deg) and a soft decoupler:
+    the alternator pulley decelerates faster than its rotor can, 0.3 s."""
+    text = _with_decoupler(30.0, FEAD.replace("amplitude_deg = 0.5", "amplitude_deg = 1.5", 1))
+    sc = loads_scene(text)
+    return sc, transient.simulate(sc, 0.3)
+
+
+def test_the_clutch_overruns_and_the_rotor_coasts(overrun):
+    """The spring only drives the rotor (its moment never pulls it back); where the clutch is
+    open the rotor coasts under its own load alone, d(omega)/dt = M_load / J_rotor."""
+    sc, res = overrun
+    m = res.channels["decoupler_moments_Nm"][:, 0]
+    assert m.min() >= 0.0
+    open_ = m == 0.0
+    assert 0.1 < open_[res.t > 0.1].mean() < 0.9  # it opens and closes every cycle
+    w = res.channels["rotor_speeds_rpm"][:, 0] * 2 * math.pi / 60
+    dt = res.t[1] - res.t[0]
+    acc = np.gradient(w, dt)
+    inner = open_ & np.roll(open_, 1) & np.roll(open_, -1) & np.roll(open_, 2) & np.roll(open_, -2)
+    load = sum(float(t.mean_Nm) for t in sc.torques if t.pulley == "alternator")
+    assert inner.sum() > 20
+    assert np.allclose(acc[inner], load / J_ROTOR, rtol=1e-3)
+    # the rotor's speed swings less than its pulley's
+    i = list(sc.route.order).index("alternator")
+    late = res.t > 0.1
+    assert np.ptp(w[late]) < np.ptp(res.channels["pulley_speeds_rpm"][late, i] * 2 * math.pi / 60)
+
+
+@pytest.mark.parametrize("table, key", [
+    ('pulley = "crank"\nrotor_inertia = 1e-3\nstiffness = 30.0', "decoupler[0].pulley"),
+    ('pulley = "tensioner"\nrotor_inertia = 1e-3\nstiffness = 30.0', "decoupler[0].pulley"),
+    ('pulley = "alternator"\nrotor_inertia = 1e-3\nstiffness = -30.0', "decoupler[0].stiffness"),
+    ('pulley = "alternator"\nrotor_inertia = 0.0\nstiffness = 30.0', "decoupler[0].rotor_inertia"),
+])
+def test_bad_decouplers_name_the_key(table, key):
+    with pytest.raises(BeltjaxError) as e:
+        loads_scene(FEAD + "\n[[decoupler]]\n" + table + "\n")
+    assert key in str(e.value) and "\n" not in str(e.value)
+
+
+def test_two_decouplers_on_one_pulley_are_refused():
+    with pytest.raises(BeltjaxError, match=r"decoupler\[1\]\.pulley"):
+        loads_scene(_with_decoupler(30.0, _with_decoupler(30.0)))
