@@ -57,6 +57,9 @@ _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_
               "stop_stiffness")
 
 
+_DECOUPLER = ("rotor_inertia", "stiffness")
+
+
 class ParameterError(BeltjaxError):
     """A parameter path that names no scalar of the scene, or a value out of its range (one line)."""
 
@@ -87,6 +90,7 @@ def paths(scene: Scene) -> list[str]:
         out += [f"pulley.{p.name}.{v}.{c}" for v in _VECTORS["pulley"] for c in _COMPONENTS]
         out += [f"pulley.{p.name}.{k}" for k in _PULLEY if _motion_rule(scene, p.name, k) is None
                 and (k not in _OPTIONAL or getattr(p, k) is not None)]
+    out += [f"decoupler.{d.pulley}.{k}" for d in scene.decouplers for k in _DECOUPLER]
     if scene.tensioner is not None:
         out += [f"tensioner.pivot.{c}" for c in _COMPONENTS]
         t = scene.tensioner
@@ -116,8 +120,16 @@ def _resolve(scene: Scene, path: str):
         if scene.tensioner is None:
             raise ParameterError("the scene has no tensioner", path)
         rest, owner, vectors, scalars = parts[1:], (lambda s: s.tensioner), _VECTORS["tensioner"], _TENSIONER
+    elif head == "decoupler":
+        names = [d.pulley for d in scene.decouplers]
+        if len(parts) < 3 or parts[1] not in names:
+            raise ParameterError(f"write decoupler.<pulley>.<key> with a decoupled pulley of the scene "
+                                 f"({', '.join(names) or 'none'})", path)
+        i = names.index(parts[1])
+        rest, owner, vectors, scalars = parts[2:], (lambda s: s.decouplers[i]), (), _DECOUPLER
     else:
-        raise ParameterError("a parameter path starts with belt., pulley.<name>. or tensioner.", path)
+        raise ParameterError("a parameter path starts with belt., pulley.<name>., tensioner. or "
+                             "decoupler.<pulley>.", path)
     if len(rest) == 2 and rest[0] in vectors and rest[1] in _COMPONENTS:
         return owner, _COMPONENTS[rest[1]], rest[0]
     if len(rest) == 1 and rest[0] in scalars:

@@ -183,7 +183,7 @@ def field(key: str) -> Field | None:
     parts = key.split(".")
     if parts[-1] in ("x", "y") and len(parts) >= 3:
         parts = parts[:-1]
-    if parts[0] == "pulley" and len(parts) == 3:
+    if parts[0] in ("pulley", "decoupler") and len(parts) == 3:
         parts = [parts[0], parts[2]]
     return FIELDS.get(".".join(parts))
 

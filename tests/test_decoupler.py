@@ -106,3 +106,15 @@ def test_bad_decouplers_name_the_key(table, key):
 def test_two_decouplers_on_one_pulley_are_refused():
     with pytest.raises(BeltjaxError, match=r"decoupler\[1\]\.pulley"):
         loads_scene(_with_decoupler(30.0, _with_decoupler(30.0)))
+
+
+def test_decoupler_parameters_are_paths():
+    """The spring rate and the rotor inertia are parameters of sweeps, fits and optimisation."""
+    from beltjax import parameters
+
+    sc = loads_scene(_with_decoupler(30.0))
+    assert {"decoupler.alternator.stiffness", "decoupler.alternator.rotor_inertia"} <= set(parameters.paths(sc))
+    sc2 = parameters.set_values(sc, {"decoupler.alternator.stiffness": 45.0})
+    assert float(sc2.decouplers[0].stiffness) == 45.0
+    with pytest.raises(parameters.ParameterError, match="decoupler.alternator.stiffness"):
+        parameters.set_values(sc, {"decoupler.alternator.stiffness": -1.0})

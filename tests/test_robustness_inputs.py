@@ -249,6 +249,11 @@ CASES = [
          "non-monotonic time",
          lambda d: ["statics", fead_trace(d, "time_s,speed_rpm\n0.0,800\n0.02,801\n0.01,800\n0.03,799\n0.04,800\n")],
          "fluctuation[2].file", "must increase"),
+    case("scene-decoupler-on-driven-crank", "`statics`: `[[decoupler]] pulley = \"crank\"` (8-pulley drive)",
+         "a decoupler on the driven crank (its motion is prescribed)",
+         lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[decoupler]]\npulley = "crank"\n'
+                                                       'rotor_inertia = 3e-3\nstiffness = 30.0\n')],
+         "decoupler[0].pulley", "not a free pulley"),
     case("scene-tensioner-cm-beyond-arm", "`statics`: `arm_cm_distance = 0.2` (arm 0.094 m)",
          "centre of mass beyond the arm",
          lambda d: ["statics", bench(d, ("pulley_inertia = 0.1806e-3", "pulley_inertia = 0.1806e-3\n"
