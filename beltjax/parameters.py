@@ -57,7 +57,7 @@ _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_
               "stop_stiffness")
 
 
-_DECOUPLER = ("rotor_inertia", "stiffness")
+_DECOUPLER = ("rotor_inertia", "stiffness", "damping")
 
 
 class ParameterError(BeltjaxError):

@@ -11,8 +11,8 @@ on the rotor (driving it on) and -M on the pulley; when the rotor is ahead (w < 
 overruns and nothing is transmitted.  The law is the derivative of the potential k max(w, 0)^2 / 2,
 continuous with its first derivative (C1), so statics, modes and gradients see it; at w = 0 the
 spring counts as engaged (a clutch at rest locks on any lead): the modes of an unloaded
-decoupler are those of the engaged one.  The clutch's own drag and the spring's damping are not
-modelled.  A scene without decouplers traces none of this.
+decoupler are those of the engaged one.  In transients a viscous ``damping`` acts across the
+spring while the clutch is engaged.  The clutch's own drag is not modelled.  A scene without decouplers traces none of this.
 """
 
 from __future__ import annotations
@@ -43,6 +43,19 @@ def body_forces(f, bodies, scene: Scene):
     for j, (d, i) in enumerate(zip(scene.decouplers, rotor_routes(scene))):
         s = float(senses[i])
         M = decoupler_moment(s * (bodies[i, 2] - bodies[n + j, 2]), d.stiffness)
+        f = f.at[i, 2].add(-s * M).at[n + j, 2].add(s * M)
+    return f
+
+
+def damping_forces(f, bodies, bodies_dot, scene: Scene):
+    """``f`` plus the decouplers' viscous moments (transients): c times the rate of wind-up while
+    the clutch is engaged (w >= 0), nothing while it overruns (N m)."""
+    n = len(scene.route.order)
+    senses = scene.route.senses
+    for j, (d, i) in enumerate(zip(scene.decouplers, rotor_routes(scene))):
+        s = float(senses[i])
+        w = s * (bodies[i, 2] - bodies[n + j, 2])
+        M = jnp.where(w >= 0.0, d.damping * s * (bodies_dot[i, 2] - bodies_dot[n + j, 2]), 0.0)
         f = f.at[i, 2].add(-s * M).at[n + j, 2].add(s * M)
     return f
 

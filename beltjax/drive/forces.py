@@ -85,8 +85,9 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     f = fx.steady_body_forces(f, body_masses(scene, inst).reshape(-1, 3), scene, inst, t is not None)  # weights
     if t is None:
         return f
-    order = scene.route.order
     f = fx.body_forces(f, bodies, bodies_dot, scene, t)
+    if scene.decouplers:
+        f = couplings.damping_forces(f, bodies, bodies_dot, scene)
     for load in scene.torques:
         f = f.at[_load_row(scene, load.pulley), 2].add(torque(load, t))
     return f

@@ -295,7 +295,7 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
     return tuple(out)
 
 
-_DECOUPLER_KEYS = ("pulley", "rotor_inertia", "stiffness")
+_DECOUPLER_KEYS = ("pulley", "rotor_inertia", "stiffness", "damping")
 
 
 def _parse_decouplers(data, free_names, drive_name, source) -> tuple[Decoupler, ...]:
@@ -316,7 +316,8 @@ def _parse_decouplers(data, free_names, drive_name, source) -> tuple[Decoupler, 
             t.fail("pulley", f"{name!r} already has a decoupler (decoupler[{seen[name]}])")
         seen[name] = i
         out.append(Decoupler(pulley=name, rotor_inertia=_arr(_num(t, "rotor_inertia", "decoupler")),
-                             stiffness=_arr(_num(t, "stiffness", "decoupler"))))
+                             stiffness=_arr(_num(t, "stiffness", "decoupler")),
+                             damping=_arr(_num(t, "damping", "decoupler", required=False, default=0.0))))
     return tuple(out)
 
 

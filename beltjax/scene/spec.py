@@ -218,6 +218,7 @@ class Decoupler(eqx.Module):
     pulley: str = eqx.field(static=True)
     rotor_inertia: jax.Array
     stiffness: jax.Array
+    damping: jax.Array = 0.0  # N m s/rad, across the spring while the clutch is engaged
 
 
 class SpanLoad(eqx.Module):
