@@ -63,6 +63,8 @@ EXAMPLES: dict[str, tuple[str, dict[str, str]]] = {
                       {"simulation.png": "simulation_fead_8pulley.png"}),
     "simulate_fead_decoupler": ("simulate scenes/fead_8pulley_decoupler.toml --t-end 1",
                                 {"simulation.png": "simulation_fead_8pulley_decoupler.png"}),
+    "simulate_fead_friction": ("simulate scenes/fead_8pulley_friction.toml --t-end 1",
+                               {"simulation.png": "simulation_fead_8pulley_friction.png"}),
     "span_bench": ("span --length 0.67143 --tension 100.5 --EA 111190 --EI 0.034 --rhoA 0.12166 --elements 16",
                    {"span_modes.png": "span_modes_bench.png"}),
 }
