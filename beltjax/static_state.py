@@ -6,10 +6,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import jax.numpy as jnp
 import numpy as np
 
 from beltjax import critical, drive, schema
-from beltjax.drive import Installation
+from beltjax.drive import Installation, couplings
 from beltjax.scene import TENSIONER, Scene
 from beltjax.drive.effects import effects_of
 from beltjax.statics import StaticsError, check_installation, check_solved, install_compiled, solve_at
@@ -32,7 +33,8 @@ class StaticResult:
     applies (N m, CCW positive); loads_Nm: the mean load on each body (N m); unloaded: the
     unloaded state's :meth:`to_json` at the same speed (with the operating point); friction:
     per route entry the wrap, the friction the arc needs and has and the slip margin
-    (:mod:`beltjax.friction`); slipping: the entries whose arcs would slip.
+    (:mod:`beltjax.friction`); slipping: the entries whose arcs would slip; decouplers: per
+    decoupled pulley the spring's wind-up (deg, the pulley's lead over its rotor) and moment (N m).
     """
 
     span_names: list[str]
@@ -58,6 +60,7 @@ class StaticResult:
     loads_Nm: dict = field(default_factory=dict)
     unloaded: dict | None = None
     friction: dict = field(default_factory=dict)
+    decouplers: dict = field(default_factory=dict)
 
     @property
     def slipping(self) -> list[str]:
@@ -91,6 +94,8 @@ class StaticResult:
             d["tensioner_angle_deg"] = self.tensioner_angle_deg
             d["spring_moment_Nm"] = self.spring_moment_Nm
             d["tensioner_pivot_force_N"] = self.tensioner_pivot_force_N
+        if self.decouplers:
+            d["decouplers"] = self.decouplers
         if self.unloaded is not None:
             d["unloaded"] = self.unloaded
         return d
@@ -207,4 +212,11 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool) -> S
             t = scene.tensioner
             pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
         res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
+    if scene.decouplers:  # each decoupler's wind-up (the pulley's lead over its rotor) and moment
+        phis, _ = drive.angles_and_arm(jnp.asarray(res.qi), scene, inst)
+        psi = drive.rotor_angles(jnp.asarray(res.qi), scene)
+        for j, (d, i) in enumerate(zip(scene.decouplers, couplings.rotor_routes(scene))):
+            w = scene.route.senses[i] * (float(phis[i]) - float(psi[j]))
+            res.decouplers[d.pulley] = {"windup_deg": math.degrees(w),
+                                        "moment_Nm": float(couplings.decoupler_moment(w, d.stiffness))}
     return res

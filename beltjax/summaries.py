@@ -61,6 +61,8 @@ def statics_table(res) -> str:
         px, py = res.tensioner_pivot_force_N
         lines += ["", f"tensioner: arm angle {res.tensioner_angle_deg:.3f} deg, spring moment "
                   f"{res.spring_moment_Nm:.4g} N m, pivot force ({px:.2f}, {py:.2f}) N"]
+    for name, d in res.decouplers.items():
+        lines += ["", f"decoupler on {name}: wound up {d['windup_deg']:.4g} deg, moment {d['moment_Nm']:.4g} N m"]
     if res.state == "operating point":
         lines += ["", f"drive torque (on the drive pulley, CCW +): {res.drive_torque_Nm:.4g} N m"]
     if any(v["friction_needed"] > 1e-9 for v in res.friction.values()):

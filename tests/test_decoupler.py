@@ -172,3 +172,14 @@ def test_energy_is_kept_through_the_clutch():
           f"{np.mean(m == 0):.0%} of the samples")
     assert put_in > 0
     assert drift < 1e-4
+
+
+def test_statics_reports_the_wind_up():
+    """statics.json's operating point gives each decoupler's wind-up (load / stiffness) and moment."""
+    from beltjax.static_state import analyse_statics
+
+    res = analyse_statics(loads_scene(_with_decoupler(5.0)), with_unloaded=False)
+    load = sum(float(t.mean_Nm) for t in loads_scene(FEAD).torques if t.pulley == "alternator")
+    d = res.to_json()["decouplers"]["alternator"]
+    assert d["moment_Nm"] == pytest.approx(abs(load), rel=1e-9)
+    assert d["windup_deg"] == pytest.approx(math.degrees(abs(load) / 5.0), rel=1e-9)
