@@ -18,7 +18,7 @@ import pytest
 from beltjax import statics
 from beltjax.drive import effects_of, pivot
 from beltjax.errors import BeltjaxError
-from beltjax.scene import load_scene, loads_scene
+from beltjax.scene import loads_scene
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
