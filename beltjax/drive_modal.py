@@ -38,8 +38,9 @@ from beltjax.mode_labels import (NAME_SHARE, RIGID_HZ, REPEATED_RTOL, _fine_prof
 
 
 def n_rigid_modes(scene: Scene) -> int:
-    """Number of zero-frequency modes: 1 when every pulley is free (the belt turns as a whole)."""
-    return 1 if all(drive.is_free(scene)) else 0
+    """Number of zero-frequency modes: 1 when every pulley is free (the belt turns as a whole) and
+    no isolator ties the crank's rim to its hub."""
+    return 1 if all(drive.is_free(scene)) and scene.isolator is None else 0
 
 
 def linearise(qi, scene: Scene, inst, speed=0.0):

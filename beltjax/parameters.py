@@ -58,6 +58,7 @@ _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_
 
 
 _DECOUPLER = ("rotor_inertia", "stiffness", "damping")
+_ISOLATOR = ("stiffness", "damping")
 
 
 class ParameterError(BeltjaxError):
@@ -91,6 +92,7 @@ def paths(scene: Scene) -> list[str]:
         out += [f"pulley.{p.name}.{k}" for k in _PULLEY if _motion_rule(scene, p.name, k) is None
                 and (k not in _OPTIONAL or getattr(p, k) is not None)]
     out += [f"decoupler.{d.pulley}.{k}" for d in scene.decouplers for k in _DECOUPLER]
+    out += [f"isolator.{k}" for k in _ISOLATOR] if scene.isolator is not None else []
     if scene.tensioner is not None:
         out += [f"tensioner.pivot.{c}" for c in _COMPONENTS]
         t = scene.tensioner
@@ -120,6 +122,10 @@ def _resolve(scene: Scene, path: str):
         if scene.tensioner is None:
             raise ParameterError("the scene has no tensioner", path)
         rest, owner, vectors, scalars = parts[1:], (lambda s: s.tensioner), _VECTORS["tensioner"], _TENSIONER
+    elif head == "isolator":
+        if scene.isolator is None:
+            raise ParameterError("the scene has no isolator", path)
+        rest, owner, vectors, scalars = parts[1:], (lambda s: s.isolator), (), _ISOLATOR
     elif head == "decoupler":
         names = [d.pulley for d in scene.decouplers]
         if len(parts) < 3 or parts[1] not in names:
@@ -128,7 +134,7 @@ def _resolve(scene: Scene, path: str):
         i = names.index(parts[1])
         rest, owner, vectors, scalars = parts[2:], (lambda s: s.decouplers[i]), (), _DECOUPLER
     else:
-        raise ParameterError("a parameter path starts with belt., pulley.<name>., tensioner. or "
+        raise ParameterError("a parameter path starts with belt., pulley.<name>., tensioner., isolator. or "
                              "decoupler.<pulley>.", path)
     if len(rest) == 2 and rest[0] in vectors and rest[1] in _COMPONENTS:
         return owner, _COMPONENTS[rest[1]], rest[0]

@@ -142,6 +142,8 @@ FIELDS: dict[str, Field] = {
     "decoupler.rotor_inertia": Field("kg m^2", 1e-9, 1e6, "an alternator rotor has about 3e-3", ">0"),
     "decoupler.stiffness": Field("N m/rad", 1e-6, 1e9, "decoupler springs have 1-100 N m/rad", ">0"),
     "decoupler.damping": Field("N m s/rad", 0.0, 1e6, "a decoupler this viscous is locked", ">=0"),
+    "isolator.stiffness": Field("N m/rad", 1e-6, 1e9, "crank isolators have about 100-1000 N m/rad", ">0"),
+    "isolator.damping": Field("N m s/rad", 0.0, 1e6, "an isolator this viscous is locked", ">=0"),
     "torque.mean_Nm": _MOMENT,
     "torque.amplitude_Nm": _MOMENT,
     "torque.frequency_hz": _FREQ,
@@ -272,7 +274,7 @@ def string_spread(EA, EI, T, L, n_elements):
 
 # --------------------------------------------------------------------------- documentation
 
-_SCENE_GROUPS = ("belt", "pulley", "tensioner", "fluctuation", "decoupler", "torque", "span_load", "simulation",
+_SCENE_GROUPS = ("belt", "pulley", "tensioner", "fluctuation", "decoupler", "isolator", "torque", "span_load", "simulation",
                  "initial")
 
 

@@ -169,8 +169,8 @@ def simulation_table(res, summary) -> str:
     units = summary["units"]
     rows = []
     for name in ("span_tensions_N", "span_forces_N", "hub_force_magnitudes_N", "pulley_speeds_rpm",
-                 "rotor_speeds_rpm", "decoupler_moments_Nm", "arm_angle_deg", "spring_moment_Nm", "drive_torques_Nm",
-                 "node_displacements_m", "slip_margins"):
+                 "rotor_speeds_rpm", "decoupler_moments_Nm", "isolator_moment_Nm", "arm_angle_deg",
+                 "spring_moment_Nm", "drive_torques_Nm", "node_displacements_m", "slip_margins"):
         if name not in summary["channels"]:
             continue
         for col, st in summary["channels"][name].items():

@@ -117,9 +117,11 @@ def initial_state(scene: Scene):
     moved ends.  When the drive pulley's motion is prescribed, the steady state is the
     operating point of the loads acting at t = 0 (each [[torque]] on at t = 0 with its mean, the
     listed bearing drag: :func:`beltjax.drive.mean_body_loads`), so a drive run under steady
-    loads starts in its steady motion; a drive turned by a torque has none, and starts
+    loads starts in its steady motion (an isolated crank's rim lagging its hub by the drive
+    torque over the isolator's stiffness); a drive turned by a torque has none, and starts
     unloaded.  Raises StaticsError (one line) when the drive has no equilibrium."""
-    at_start = () if drive.travel_follows_drive(scene) else tuple(
+    torque_driven = drive.travel_follows_drive(scene) and scene.isolator is None
+    at_start = () if torque_driven else tuple(
         dataclasses.replace(load, amplitude_Nm=0.0 * load.amplitude_Nm, t_end_s=None) for load in scene.torques
         if float(load.t_start_s) <= 0.0 and (load.t_end_s is None or float(load.t_end_s) > 0.0))
     # statics needs none of the transient tables: strip them so that it compiles once per drive
@@ -127,6 +129,12 @@ def initial_state(scene: Scene):
     st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)), allow_supercritical=True,
                                  with_unloaded=False)
     inst, qi0 = st.inst, jnp.asarray(st.qi)
+    if scene.isolator is not None:  # the rim lags its hub by the drive torque over the stiffness: turn the loop
+        from beltjax import drive_modal
+
+        d = drive.drive_pulley(scene)
+        lag = -st.drive_torque_Nm / float(scene.isolator.stiffness)  # rad
+        qi0 = qi0 + drive_modal.rigid_mode(scene, inst) * (scene.route.senses[d] * float(inst.radii[d]) * lag)
     ini = scene.initial
     if ini.rotation_deg or ini.arm_angle_deg is not None:
         idx = _rigid_index(scene)

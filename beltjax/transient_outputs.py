@@ -75,6 +75,9 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     if scene.tensioner is not None:
         out["arm_angle_deg"] = jnp.rad2deg(theta)
         out["spring_moment_Nm"] = drive.spring_moment(theta, scene)
+    if scene.isolator is not None:  # the isolator's moment on the crank's rim
+        d = list(scene.route.order).index(scene.isolator.pulley)
+        out["isolator_moment_Nm"] = couplings.isolator_moment(scene, B[d, 2], Bd[d, 2], t)
     if scene.decouplers:  # the rotors' speeds and the decoupler springs' moments
         rows = n + jnp.arange(len(scene.decouplers))
         out["rotor_speeds_rpm"] = Bd[rows, 2] * 60.0 / (2 * jnp.pi)
@@ -135,6 +138,7 @@ UNITS = dict(
     arm_angle_deg="deg",
     spring_moment_Nm="N m",
     rotor_speeds_rpm="rpm",
+    isolator_moment_Nm="N m",
     decoupler_moments_Nm="N m",
     node_displacements_m="m",
     friction_needed="-",

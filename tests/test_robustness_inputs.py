@@ -254,6 +254,10 @@ CASES = [
          lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[decoupler]]\npulley = "crank"\n'
                                                        'rotor_inertia = 3e-3\nstiffness = 30.0\n')],
          "decoupler[0].pulley", "not a free pulley"),
+    case("scene-isolator-on-accessory", "`statics`: `[isolator] pulley = \"ac\"` (8-pulley drive)",
+         "an isolator on an accessory (it joins the driven crank's rim to its hub)",
+         lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[isolator]\npulley = "ac"\nstiffness = 300.0\n')],
+         "isolator.pulley", "not the driven drive pulley"),
     case("scene-tensioner-cm-beyond-arm", "`statics`: `arm_cm_distance = 0.2` (arm 0.094 m)",
          "centre of mass beyond the arm",
          lambda d: ["statics", bench(d, ("pulley_inertia = 0.1806e-3", "pulley_inertia = 0.1806e-3\n"

@@ -98,7 +98,7 @@ def _key(scene) -> tuple:
     pulleys = tuple((p.name, bool(p.driven)) for p in scene.pulleys)
     r = scene.route
     return (m.fidelity, m.elements_per_span, m.bending, m.effects, r.order, r.back_side, r.direction, pulleys,
-            scene.tensioner is None, tuple(d.pulley for d in scene.decouplers))
+            scene.tensioner is None, tuple(d.pulley for d in scene.decouplers), scene.isolator is None)
 
 
 #: assembled drives by structure (bounded: cleared when it grows past _CACHE_SIZE)
@@ -108,7 +108,8 @@ _CACHE_SIZE = 1024
 
 def _assemble(scene) -> Drive:
     order = scene.route.order
-    free = tuple(True if name == TENSIONER else not scene.pulley(name).driven for name in order)
+    iso = None if scene.isolator is None else scene.isolator.pulley  # an isolated crank's rim turns freely
+    free = tuple(True if name in (TENSIONER, iso) else not scene.pulley(name).driven for name in order)
     driven = [p.name for p in scene.pulleys if p.driven and p.name in order]
     name = driven[0] if driven else next(p.name for p in scene.pulleys if p.name in order)
     return Drive(spans_of(scene), layout_of(scene), effects_of(scene), tuple(order),

@@ -1,4 +1,5 @@
-"""Bodies joined to a pulley rather than to the belt: the decoupler's rotor.
+"""Bodies joined to a pulley rather than to the belt: the decoupler's rotor; and the crank
+isolator, which joins the crank's rim to its prescribed hub.
 
 An overrunning alternator decoupler (:class:`beltjax.scene.spec.Decoupler`) is the pulley, a
 spring and a one-way clutch in series with the rotor.  The rotor is a body of its own (one
@@ -12,7 +13,15 @@ overruns and nothing is transmitted.  The law is the derivative of the potential
 continuous with its first derivative (C1), so statics, modes and gradients see it; at w = 0 the
 spring counts as engaged (a clutch at rest locks on any lead): the modes of an unloaded
 decoupler are those of the engaged one.  In transients a viscous ``damping`` acts across the
-spring while the clutch is engaged.  The clutch's own drag is not modelled.  A scene without decouplers traces none of this.
+spring while the clutch is engaged.  The clutch's own drag is not modelled.  A scene without
+decouplers traces none of this.
+
+A crank isolator (:class:`beltjax.scene.spec.Isolator`) makes the driven crank's rim a free
+body (its rotation a coordinate: the belt's travel follows it) on a spring and damper to the
+hub, whose angle theta_h(t) is the crank's prescribed motion (speed, run-up, fluctuation):
+M = -k (theta - theta_h) - c (theta' - theta_h') on the rim.  In statics the rim is held at
+the hub (theta = theta_h) and the drive torque is what the spring carries, so the wind-up at
+the operating point is -(drive torque) / k.
 """
 
 from __future__ import annotations
@@ -67,3 +76,35 @@ def load_body(scene: Scene, name: str) -> int | None:
         if d.pulley == name:
             return len(scene.route.order) + j
     return None
+
+
+def hub_angle(scene: Scene, t):
+    """The isolated crank's hub angle (rad, CCW) and speed (rad/s) at time t: its prescribed motion."""
+    import jax
+
+    from beltjax.drive.kinematics import belt_travel
+
+    i = scene.route.order.index(scene.isolator.pulley)
+    k = float(scene.route.senses[i]) / scene.pulley(scene.isolator.pulley).radius
+    x, v = jax.jvp(lambda tt: belt_travel(scene, tt), (t,), (jnp.ones_like(t),))
+    return k * x, k * v
+
+
+def isolator_moment(scene: Scene, angle, rate, t=None):
+    """The isolator's moment on the crank's rim (N m) at rim angle ``angle`` (rad) and speed
+    ``rate`` (rad/s): -k (angle - hub) - c (rate - hub rate); t None (statics): the hub at rest
+    at 0 and no damping."""
+    iso = scene.isolator
+    if t is None:
+        return -iso.stiffness * angle
+    h, hd = hub_angle(scene, t)
+    return -iso.stiffness * (angle - h) - iso.damping * (rate - hd)
+
+
+def isolator_forces(f, bodies, bodies_dot, scene: Scene, t=None):
+    """``f`` plus the isolator's moment on the crank's rim (nothing without an isolator)."""
+    if scene.isolator is None:
+        return f
+    i = scene.route.order.index(scene.isolator.pulley)
+    rate = None if bodies_dot is None else bodies_dot[i, 2]
+    return f.at[i, 2].add(isolator_moment(scene, bodies[i, 2], rate, t))

@@ -84,7 +84,8 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     fx = effects_of(scene)
     f = fx.steady_body_forces(f, body_masses(scene, inst).reshape(-1, 3), scene, inst, t is not None)  # weights
     if t is None:
-        return f
+        return couplings.isolator_forces(f, bodies, None, scene)
+    f = couplings.isolator_forces(f, bodies, bodies_dot, scene, t)
     f = fx.body_forces(f, bodies, bodies_dot, scene, t)
     if scene.decouplers:
         f = couplings.damping_forces(f, bodies, bodies_dot, scene)

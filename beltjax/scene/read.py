@@ -13,7 +13,7 @@ from beltjax import geometry, textfile
 from beltjax.tomltable import describe
 from beltjax.scene.spec import Scene, TENSIONER
 from beltjax.scene import fluctuations as fluctuation_tables
-from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_decouplers, _parse_initial, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
+from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_decouplers, _parse_initial, _parse_isolator, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
 
 
 def _key_for(route_idx, scene_names, order):
@@ -102,6 +102,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
     torques = _parse_torques(data["torque"], free_names, source) if "torque" in data else ()
     decouplers = _parse_decouplers(data["decoupler"], free_names, pulleys[drive].name, source) \
         if "decoupler" in data else ()
+    isolator = _parse_isolator(data["isolator"], pulleys[drive], source) if "isolator" in data else None
     fluctuations = ()
     if "fluctuation" in data:
         if not isinstance(data["fluctuation"], list):
@@ -128,6 +129,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         span_loads=span_loads,
         fluctuations=fluctuations,
         decouplers=decouplers,
+        isolator=isolator,
         initial=initial,
         simulation=simulation,
     )

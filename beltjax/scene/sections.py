@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from beltjax import schema, tomltable
 from beltjax.ancf import BENDING_MODELS
 from beltjax.tomltable import describe
-from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initial, MAX_ELEMENTS_PER_SPAN, Model, Pulley, Route, SOLVERS, Scene, SceneError, Simulation, SpanLoad, TENSIONER, Tensioner, Torque, Decoupler
+from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initial, MAX_ELEMENTS_PER_SPAN, Model, Pulley, Route, SOLVERS, Scene, SceneError, Simulation, SpanLoad, TENSIONER, Tensioner, Torque, Decoupler, Isolator
 
 
 def _fail(key, msg, source=""):
@@ -34,8 +34,8 @@ _vec = schema.read_vector
 
 
 _TOP_KEYS = (
-    "description", "belt", "pulley", "tensioner", "route", "model", "fluctuation", "decoupler", "torque", "span_load",
-    "initial", "simulation"
+    "description", "belt", "pulley", "tensioner", "route", "model", "fluctuation", "decoupler", "isolator", "torque",
+    "span_load", "initial", "simulation"
 )
 
 
@@ -319,6 +319,16 @@ def _parse_decouplers(data, free_names, drive_name, source) -> tuple[Decoupler, 
                              stiffness=_arr(_num(t, "stiffness", "decoupler")),
                              damping=_arr(_num(t, "damping", "decoupler", required=False, default=0.0))))
     return tuple(out)
+
+
+def _parse_isolator(data, drive, source) -> Isolator:
+    t = _table(data, "isolator", source, ("pulley", "stiffness", "damping"))
+    name = t.string("pulley")
+    if name != drive.name or not drive.driven:
+        t.fail("pulley", f"{name!r} is not the driven drive pulley (an isolator joins the driven crank's pulley to its "
+               f"hub; here {drive.name!r}{'' if drive.driven else ', not driven'})")
+    return Isolator(pulley=name, stiffness=_arr(_num(t, "stiffness", "isolator")),
+                    damping=_arr(_num(t, "damping", "isolator", required=False, default=0.0)))
 
 
 def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLoad, ...]:

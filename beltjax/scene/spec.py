@@ -221,6 +221,17 @@ class Decoupler(eqx.Module):
     damping: jax.Array = 0.0  # N m s/rad, across the spring while the clutch is engaged
 
 
+class Isolator(eqx.Module):
+    """A crank isolator (torsional isolator pulley): the driven drive pulley's rim (the scene's
+    pulley, its inertia) on a spring (stiffness, N m/rad) and damper (damping, N m s/rad) to the
+    hub, whose motion is the pulley's prescribed one (speed, run-up, fluctuation)
+    (:mod:`beltjax.drive.couplings`)."""
+
+    pulley: str = eqx.field(static=True)
+    stiffness: jax.Array
+    damping: jax.Array = 0.0
+
+
 class SpanLoad(eqx.Module):
     """A harmonic force (N) on an interior node of a span, normal to the installed span
     (positive to the left of the belt's travel): F(t) = amplitude_N sin(2 pi frequency_hz t
@@ -275,6 +286,7 @@ class Scene(eqx.Module):
     span_loads: tuple[SpanLoad, ...] = ()
     fluctuations: tuple[Fluctuation, ...] = ()
     decouplers: tuple[Decoupler, ...] = ()
+    isolator: Isolator | None = None
     initial: Initial = Initial()
     simulation: Simulation = Simulation()
 
