@@ -1,4 +1,5 @@
-"""Shared test helpers: the example scene files as text, and edits of that text."""
+"""Shared test helpers: the example scene files as text, edits of that text, and a drive's
+mechanical energy."""
 
 import pathlib
 
@@ -16,3 +17,31 @@ def substitute(text, *pairs):
         assert text.count(old) == 1, old
         text = text.replace(old, new)
     return text
+
+
+def mechanical_energy(sc, inst, extra=None):
+    """Mechanical energy (J) of states y = (q_i, q_i'), jitted and vmapped: kinetic, the spans'
+    potential, the tensioner spring's, plus ``extra(qi, scene)`` (J) for what a test adds (a
+    decoupler's spring, a constant load's -M psi)."""
+    import jax
+    import jax.numpy as jnp
+
+    from beltjax import drive
+
+    sc = drive.canonical(sc)
+    n = drive.n_independent(sc)
+    t = sc.tensioner
+
+    def energy(y):
+        qi, qd = y[:n], y[n:]
+        M, _ = drive.reduced_system(qi, qd, sc, inst)
+        E, _ = drive.split_full(drive.full_coordinates(qi, sc, inst), sc)
+        V = sum(drive.span_potential(E[s], s, sc, inst) for s in range(E.shape[0]))
+        if t is not None:
+            _, theta = drive.angles_and_arm(qi, sc, inst)
+            V = V + 0.5 * t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg)) ** 2
+        if extra is not None:
+            V = V + extra(qi, sc)
+        return 0.5 * qd @ M @ qd + V
+
+    return jax.jit(jax.vmap(energy))

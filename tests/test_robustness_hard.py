@@ -36,7 +36,7 @@ from beltjax.ancf import Section
 from beltjax.scene import Initial, Simulation, loads_scene
 from beltjax.span import span_matrices, stretch_for_tension
 
-from _scenes import scene_text, substitute
+from _scenes import mechanical_energy, scene_text, substitute
 
 #: elements per span: spans and the two- and three-pulley drives (one compiled span mesh)
 N = 6
@@ -658,25 +658,6 @@ def long_run():
     return sc, res, st
 
 
-def _energy(sc, inst):
-    """Mechanical energy (J) of states y = (q_i, q_i'): kinetic, Green-Lagrange bars, spring."""
-    sc = drive.canonical(sc)
-    n = drive.n_independent(sc)
-    L0 = drive.element_length(sc, inst)
-    t = sc.tensioner
-
-    def energy(y):
-        qi, qd = y[:n], y[n:]
-        M, _ = drive.reduced_system(qi, qd, sc, inst)
-        E, _ = drive.split_full(drive.full_coordinates(qi, sc, inst), sc)
-        V = sum(drive.span_potential(E[s], s, sc, inst) for s in range(E.shape[0]))
-        _, theta = drive.angles_and_arm(qi, sc, inst)
-        V = V + 0.5 * t.spring_stiffness * (theta - jnp.deg2rad(t.spring_preload_deg)) ** 2
-        return 0.5 * qd @ M @ qd + V
-
-    return jax.jit(jax.vmap(energy))
-
-
 def test_long_undamped_run_keeps_its_energy(long_run):
     """T_LONG = 3 s of free vibration of the tensioner bench's rotational model (3 degrees of
     freedom: arm, idler, alternator; the arm enters the kinematic map nonlinearly), undamped,
@@ -694,7 +675,7 @@ def test_long_undamped_run_keeps_its_energy(long_run):
     """
     sc, res, st = long_run
     assert all(np.all(np.isfinite(v)) for v in res.channels.values()) and np.all(np.isfinite(res.y))
-    energy = _energy(sc, st.inst)
+    energy = mechanical_energy(sc, st.inst)
     E = np.asarray(energy(jnp.asarray(res.y)))
     n = st.qi.size
     E_static = float(energy(jnp.concatenate([jnp.asarray(st.qi), jnp.zeros(n)])[None])[0])
