@@ -41,6 +41,17 @@ def _number(name, positive=False, allow_zero=True, finite=True):
     return parse
 
 
+def _count(name):
+    """A whole-number argument (its range is the API's to check)."""
+    def parse(text):
+        try:
+            return int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"--{name} must be a whole number, got {text!r}") from None
+
+    return parse
+
+
 def _elements(text):
     try:
         n = int(text)
@@ -269,6 +280,27 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def cmd_orders(args) -> int:
+    """Response over engine speed: orders.json, orders.csv, orders.npz, figures, a summary."""
+    from beltjax import orders
+    from beltjax.orders import command
+    from beltjax.progress import counter
+
+    scene = _load(args.scene)
+    out = _out_dir(args.out)
+    settings = orders.Settings(samples=args.samples, max_order=args.max_order)
+    try:
+        res = _analysis(orders.response_over_speed, scene, args.rpm, settle_s=args.settle_s, settings=settings,
+                        progress=counter("  orders", "speeds"))
+    except orders.OrdersError as exc:
+        raise InputError(str(exc)) from None
+    title = _title(scene, args.scene)
+    command.write(res, out, title)
+    print(f"response over speed of {title}")
+    print(command.summary(res))
+    return 0
+
+
 # --------------------------------------------------------------------------- fit, sweep, optimize
 
 
@@ -372,6 +404,21 @@ def build_parser() -> argparse.ArgumentParser:
     si.add_argument("--out", default="out", help="output directory (default ./out)")
     si.set_defaults(func=cmd_simulate)
 
+    od = sub.add_parser("orders", help="response over engine speed: periodic steady state at each speed "
+                                       "(arm motion, span tensions, hub loads, slip margins, order content)")
+    od.add_argument("scene", help="scene file (TOML)")
+    od.add_argument("--rpm", type=_rpm_range, required=True,
+                    help="drive pulley speeds A:B:STEP [rpm], end included, all > 0 (e.g. 600:6000:50)")
+    od.add_argument("--settle-s", dest="settle_s", type=_number("settle-s", True), default=1.0,
+                    help="transient time before the recorded cycle [s] (default 1; speeds that have not settled "
+                         "run again 4x longer, then are flagged)")
+    od.add_argument("--max-order", dest="max_order", type=_number("max-order", True, False), default=8.0,
+                    help="highest crank order reported (default 8)")
+    od.add_argument("--samples", type=_count("samples"), default=128,
+                    help="output samples per excitation cycle (default 128)")
+    od.add_argument("--out", default="out", help="output directory (default ./out)")
+    od.set_defaults(func=cmd_orders)
+
     fi = sub.add_parser("fit", help="fit belt and tensioner parameters to bench data (identification)")
     fi.add_argument("data", help="dataset file (TOML) pointing at CSV files")
     fi.add_argument("--out", default="out", help="output directory (default ./out)")
@@ -409,7 +456,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if args.command is None:
-            raise InputError("a command is required: span, statics, modal, campbell, simulate, fit, sweep or optimize")
+            raise InputError("a command is required: span, statics, modal, campbell, simulate, orders, fit, sweep or optimize")
         for name in ("scene", "spec", "data"):
             if getattr(args, name, None) == "":
                 raise InputError(f"argument {name}: empty file name")

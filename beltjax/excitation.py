@@ -104,7 +104,7 @@ def peak_drive_speed(scene: Scene, t_end: float) -> float:
         w += 2 * math.pi * float(p.fluctuation_frequency_hz) * math.radians(abs(float(p.fluctuation_amplitude_deg)))
         for x in scene.fluctuations:  # each harmonic's peak speed: n w A (orders) or 2 pi f A
             rate = float(x.rate) * w0 if x.per == "rev" else 2 * math.pi * float(x.rate)
-            w += rate * math.radians(abs(float(x.amplitude_deg)))
+            w += rate * math.radians(float(np.max(np.abs(np.asarray(x.amplitude_deg)))))  # a table: its largest
     return w
 
 
@@ -139,7 +139,7 @@ def forcing(scene: Scene, t_end: float) -> list[Forcing]:
     if "speed_fluctuation" in effects_of(scene) and scene.fluctuations:
         w = peak_drive_speed(scene, t_end)  # an order's frequency at the highest speed of the run
         for i, x in enumerate(scene.fluctuations):
-            if float(x.amplitude_deg) == 0.0:
+            if not np.any(np.asarray(x.amplitude_deg) != 0.0):
                 continue
             f = float(x.rate) * w / (2 * math.pi) if x.per == "rev" else float(x.rate)
             what = (f"order {float(x.rate):.4g} of the fluctuation of {d.name}" if x.per == "rev"

@@ -111,6 +111,19 @@ def _straighten(qi_new, qi_old, scene: Scene, inst) -> jax.Array:
     return qi_new.at[drive.n_rigid(scene):].add(spans.straight_shift(d0, d1, Lspan))
 
 
+def isolator_wind_up(scene: Scene, inst, qi, drive_torque):
+    """q_i (m, rad) of the steady state ``qi`` with an isolated crank's rim lagging its hub by the drive
+    torque (N m) over the isolator's stiffness: the belt loop turned by that lag (pure JAX; ``qi``
+    unchanged without an isolator)."""
+    if scene.isolator is None:
+        return qi
+    from beltjax import drive_modal
+
+    d = drive.drive_pulley(scene)
+    lag = -drive_torque / scene.isolator.stiffness  # rad
+    return qi + drive_modal.rigid_mode(scene, inst) * (scene.route.senses[d] * inst.radii[d] * lag)
+
+
 def initial_state(scene: Scene):
     """(installation, q_i(0), q_i'(0)): the steady state at the initial belt speed with the
     ``[initial]`` changes (added pulley rotations, arm angle); spans straight between their
@@ -128,13 +141,8 @@ def initial_state(scene: Scene):
     bare = dataclasses.replace(scene, initial=Initial(), simulation=Simulation(), torques=at_start, span_loads=())
     st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)), allow_supercritical=True,
                                  with_unloaded=False)
-    inst, qi0 = st.inst, jnp.asarray(st.qi)
-    if scene.isolator is not None:  # the rim lags its hub by the drive torque over the stiffness: turn the loop
-        from beltjax import drive_modal
-
-        d = drive.drive_pulley(scene)
-        lag = -st.drive_torque_Nm / float(scene.isolator.stiffness)  # rad
-        qi0 = qi0 + drive_modal.rigid_mode(scene, inst) * (scene.route.senses[d] * float(inst.radii[d]) * lag)
+    inst = st.inst
+    qi0 = isolator_wind_up(scene, inst, jnp.asarray(st.qi), st.drive_torque_Nm)
     ini = scene.initial
     if ini.rotation_deg or ini.arm_angle_deg is not None:
         idx = _rigid_index(scene)

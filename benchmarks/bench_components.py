@@ -30,7 +30,7 @@ T_END = 1.0
 
 def variants() -> dict[str, str]:
     base = (SCENES / "fead_8pulley.toml").read_text()
-    one = re.sub(r"\[\[fluctuation\]\][^\[]*", "", base).replace(
+    one = re.sub(r"\[\[fluctuation\]\].*(?:\n(?!\[).*)*\n?", "", base).replace(
         'speed_rpm = 800.0            # idle',
         'speed_rpm = 800.0            # idle\nfluctuation_amplitude_deg = 0.5\nfluctuation_frequency_hz = 26.6667', 1)
     return {

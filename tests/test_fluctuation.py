@@ -17,7 +17,7 @@ from beltjax.scene import loads_scene
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 # the eight-pulley drive without its [[fluctuation]] tables (each test gives its own)
-FEAD = re.sub(r"\[\[fluctuation\]\][^\[]*", "", (ROOT / "scenes" / "fead_8pulley.toml").read_text())
+FEAD = re.sub(r"\[\[fluctuation\]\].*(?:\n(?!\[).*)*\n?", "", (ROOT / "scenes" / "fead_8pulley.toml").read_text())
 W = 800 * 2 * math.pi / 60  # the drive's idle speed, rad/s
 
 
@@ -99,11 +99,41 @@ def test_fixed_frequency_entry_and_forcing_check():
         transient.simulate(fast, 0.1)
 
 
+def test_amplitude_table_follows_the_speed():
+    """An amplitude given against speed is interpolated at the pulley's nominal speed: at a constant
+    speed it is that speed's value; in a run-up it changes with the speed (held beyond the table)."""
+    table = ('[[fluctuation]]\npulley = "crank"\norder = 2.0\nrpm = [600.0, 1000.0, 3000.0]\n'
+             'amplitude_deg = [0.9, 0.5, 0.1]\n')
+    ts = np.linspace(0.0, 0.2, 37)
+    steady = loads_scene(_scene(table))
+    assert np.allclose(_fluct(steady, ts), math.radians(0.7) * np.sin(2 * W * ts), rtol=0, atol=1e-12)  # 800 rpm
+    run_up = "acceleration_rpm_per_s = 3000.0\ntarget_speed_rpm = 4000.0"
+    sc = loads_scene(_scene(table, extra_crank=run_up))
+    ts = np.linspace(0.0, 1.5, 31)
+    R = float(sc.pulley("crank").radius)
+    a = 3000.0 * 2 * math.pi / 60
+    tau = np.minimum(ts, 3200.0 / 3000.0)
+    alpha = W * tau + 0.5 * a * tau**2 + 4000.0 * 2 * math.pi / 60 * (ts - tau)
+    rpm = 800.0 + 3000.0 * tau
+    amp = np.interp(rpm, [600.0, 1000.0, 3000.0], [0.9, 0.5, 0.1])
+    got = np.array([float(drive.belt_travel(sc, jnp.float64(x))) / R for x in ts]) - alpha
+    assert np.allclose(got, np.radians(amp) * np.sin(2 * alpha), rtol=0, atol=1e-11)
+
+
 @pytest.mark.parametrize("tables, key", [
     (_order(2.0, 0.5, pulley="alternator"), "fluctuation[0].pulley"),
     ('[[fluctuation]]\npulley = "crank"\norder = 2.0\nfrequency_hz = 3.0\namplitude_deg = 0.1\n', "fluctuation[0].order"),
     (_order(-2.0, 0.5), "fluctuation[0].order"),
     (_order(2.0, -0.5), "fluctuation[0].amplitude_deg"),
+    ('[[fluctuation]]\npulley = "crank"\norder = 2.0\namplitude_deg = [0.1, 0.2]\n', "fluctuation[0].amplitude_deg"),
+    ('[[fluctuation]]\npulley = "crank"\norder = 2.0\nrpm = [800.0, 900.0]\namplitude_deg = [0.1]\n',
+     "fluctuation[0].amplitude_deg"),
+    ('[[fluctuation]]\npulley = "crank"\norder = 2.0\nrpm = [800.0, 900.0, 1000.0]\namplitude_deg = [0.1, 0.2]\n',
+     "fluctuation[0].amplitude_deg"),
+    ('[[fluctuation]]\npulley = "crank"\norder = 2.0\nrpm = [900.0, 800.0]\namplitude_deg = [0.1, 0.2]\n',
+     "fluctuation[0].rpm"),
+    ('[[fluctuation]]\npulley = "crank"\norder = 2.0\nrpm = [800.0, 900.0]\namplitude_deg = [0.1, -0.2]\n',
+     "fluctuation[0].amplitude_deg"),
     ('[[fluctuation]]\npulley = "crank"\norder = 2.0\namplitude_deg = 0.1\nharmonics = 3\n', "fluctuation[0].harmonics"),
 ])
 def test_bad_fluctuation_tables_name_the_key(tables, key):

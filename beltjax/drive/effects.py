@@ -97,9 +97,9 @@ class Effect(eqx.Module):
         ``angle`` (n,) rad."""
         return pos
 
-    def drive_angle(self, angle, pulley, t, scene: Scene):
+    def drive_angle(self, angle, pulley, t, scene: Scene, speed_rpm):
         """What this effect adds to the drive pulley's angle (rad) at time t (s), ``angle`` its
-        mean rotation (rad); None for nothing."""
+        mean rotation (rad), ``speed_rpm`` its nominal speed then (rpm); None for nothing."""
         return None
 
 
@@ -261,12 +261,12 @@ class SpeedFluctuation(Effect):
 
     name: ClassVar[str] = "speed_fluctuation"
 
-    def drive_angle(self, angle, pulley, t, scene):
+    def drive_angle(self, angle, pulley, t, scene, speed_rpm):
         A = jnp.deg2rad(pulley.fluctuation_amplitude_deg)
         out = A * jnp.sin(2 * jnp.pi * pulley.fluctuation_frequency_hz * t)
         for x in scene.fluctuations:
             if x.pulley == pulley.name:
-                out = out + x.angle(angle, t)
+                out = out + x.angle(angle, t, speed_rpm)
         return out
 
 
@@ -331,12 +331,12 @@ class Effects(eqx.Module):
             pos = x.body_positions(pos, angle, scene, inst)
         return pos
 
-    def drive_angle(self, angle, pulley, t, scene):
+    def drive_angle(self, angle, pulley, t, scene, speed_rpm):
         """The drive pulley's angle (rad) at time t with the listed effects (``angle``: its mean
-        rotation, rad)."""
+        rotation, rad; ``speed_rpm``: its nominal speed then, rpm)."""
         out = angle
         for x in self.listed:
-            d = x.drive_angle(angle, pulley, t, scene)
+            d = x.drive_angle(angle, pulley, t, scene, speed_rpm)
             out = out if d is None else out + d
         return out
 

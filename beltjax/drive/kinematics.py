@@ -59,12 +59,14 @@ def belt_travel(scene: Scene, t):
     a = p.acceleration_rpm_per_s * rpm
     if p.target_speed_rpm is None:
         angle = w0 * t + 0.5 * a * t**2
+        speed = w0 + a * t
     else:
         wT = p.target_speed_rpm * rpm
         t_star = (wT - w0) / jnp.where(a == 0.0, 1.0, a)
         tau = jnp.minimum(t, t_star)
         angle = w0 * tau + 0.5 * a * tau**2 + wT * (t - tau)
-    angle = effects_of(scene).drive_angle(angle, p, t, scene)
+        speed = w0 + a * tau
+    angle = effects_of(scene).drive_angle(angle, p, t, scene, speed / rpm)
     return p.radius * angle
 
 

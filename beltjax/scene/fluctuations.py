@@ -10,6 +10,12 @@ Each table is one harmonic of the driven drive pulley's angle (the ``speed_fluct
     amplitude_deg = 0.6    # deg
     phase_deg = 0.0        # deg, at the start of the run
 
+The amplitude may be a table against the pulley's nominal speed (an engine's fluctuation falls as
+it speeds up), interpolated linearly and held beyond its ends::
+
+    rpm = [800.0, 2000.0, 4000.0, 6000.0]     # increasing, > 0
+    amplitude_deg = [0.5, 0.12, 0.03, 0.015]   # one per speed
+
 or a measured trace of one cycle, repeated (the harmonics of its Fourier series)::
 
     [[fluctuation]]
@@ -33,10 +39,10 @@ import os
 
 import numpy as np
 
-from beltjax import textfile
+from beltjax import schema, textfile
 from beltjax.scene.spec import Fluctuation
 
-KEYS = ("pulley", "order", "frequency_hz", "amplitude_deg", "phase_deg", "file", "harmonics")
+KEYS = ("pulley", "order", "frequency_hz", "amplitude_deg", "rpm", "phase_deg", "file", "harmonics")
 #: harmonics of a trace kept by default
 HARMONICS = 24
 #: samples of the uniform grid a trace is resampled to (at least 4 per harmonic)
@@ -58,7 +64,7 @@ def parse(data, drive, base: str, table, num, source) -> tuple[Fluctuation, ...]
             t.fail("pulley", f"{pulley!r} is not the driven drive pulley (only a prescribed motion fluctuates; "
                    f"here {name!r}{'' if driven else ', not driven'})")
         if t.has("file"):
-            for k in ("order", "frequency_hz", "amplitude_deg", "phase_deg"):
+            for k in ("order", "frequency_hz", "amplitude_deg", "rpm", "phase_deg"):
                 if t.has(k):
                     t.fail(k, "a trace (file) gives its own harmonics: leave this key out")
             n = t.integer("harmonics", required=False, default=HARMONICS, minimum=1, maximum=GRID // 4)
@@ -72,11 +78,40 @@ def parse(data, drive, base: str, table, num, source) -> tuple[Fluctuation, ...]
         rate = num(t, "order" if per == "rev" else "frequency_hz", "fluctuation")
         if rate <= 0:
             t.fail("order" if per == "rev" else "frequency_hz", f"must be > 0, got {rate!r}")
-        out.append(Fluctuation(pulley=pulley, per=per, rate=_arr(rate),
-                               amplitude_deg=_arr(num(t, "amplitude_deg", "fluctuation")),
+        amp, speeds = _amplitude(t, num)
+        out.append(Fluctuation(pulley=pulley, per=per, rate=_arr(rate), amplitude_deg=amp,
                                phase_deg=_arr(num(t, "phase_deg", "fluctuation", required=False, default=0.0)),
-                               key=f"fluctuation[{i}]"))
+                               key=f"fluctuation[{i}]", rpm=speeds))
     return tuple(out)
+
+
+def _amplitude(t, num):
+    """(amplitude_deg, rpm): a number and None, or with ``rpm`` two arrays of one length >= 2 (the
+    speeds increasing and > 0, each amplitude in the field's range)."""
+    if not t.has("rpm"):
+        if isinstance(t.raw("amplitude_deg", False), list):
+            t.fail("amplitude_deg", "an array of amplitudes needs rpm = [...], the speeds they are given at")
+        return _arr(num(t, "amplitude_deg", "fluctuation")), None
+    speeds, amps = t.raw("rpm", True), t.raw("amplitude_deg", True)
+    for k, v in (("rpm", speeds), ("amplitude_deg", amps)):
+        if not isinstance(v, list) or len(v) < 2:
+            t.fail(k, "expected an array of at least two numbers (amplitude_deg one per speed of rpm)")
+    if len(speeds) != len(amps):
+        t.fail("amplitude_deg", f"{len(amps)} amplitudes for {len(speeds)} speeds of rpm: give one per speed")
+    r = t.reader
+    speeds = [r.number(t.path("rpm"), v, positive=True) for v in speeds]
+    amps = [r.number(t.path("amplitude_deg"), v, nonnegative=True) for v in amps]
+    for a in amps:
+        msg = schema.problem(schema.FIELDS["fluctuation.amplitude_deg"], a)
+        if msg:
+            t.fail("amplitude_deg", msg)
+    for s in speeds:
+        msg = schema.problem(schema.FIELDS["pulley.speed_rpm"], s)
+        if msg:
+            t.fail("rpm", msg)
+    if any(b <= a for a, b in zip(speeds, speeds[1:])):
+        t.fail("rpm", "the speeds must increase")
+    return _arr(amps), _arr(speeds)
 
 
 def _arr(x):

@@ -192,6 +192,8 @@ class Fluctuation(eqx.Module):
     alpha the pulley's mean rotation since t = 0 (rad), so it follows the speed in run-ups;
     per "s": amplitude_deg sin(2 pi rate t + phase), rate a frequency (Hz).  A measured speed
     trace is read into such harmonics (``file``: where from, for reports; ``key``: the table).
+    With ``rpm`` (increasing speeds, rpm) the amplitude is a table against the pulley's nominal
+    speed (``amplitude_deg`` one value per speed, interpolated linearly, held beyond the ends).
     """
 
     pulley: str = eqx.field(static=True)
@@ -201,11 +203,19 @@ class Fluctuation(eqx.Module):
     phase_deg: jax.Array
     file: str = eqx.field(static=True, default="")
     key: str = eqx.field(static=True, default="")  # the scene-file table, e.g. "fluctuation[1]"
+    rpm: jax.Array | None = None
 
-    def angle(self, alpha, t):
-        """The fluctuation (rad) at mean rotation alpha (rad) and time t (s)."""
+    def amplitude(self, speed_rpm):
+        """The amplitude (deg) at the pulley's nominal speed ``speed_rpm`` (rpm)."""
+        if self.rpm is None:
+            return self.amplitude_deg
+        return jnp.interp(jnp.abs(speed_rpm), self.rpm, self.amplitude_deg)
+
+    def angle(self, alpha, t, speed_rpm=None):
+        """The fluctuation (rad) at mean rotation alpha (rad), time t (s) and nominal speed
+        ``speed_rpm`` (rpm; needed only with an amplitude table)."""
         x = self.rate * alpha if self.per == "rev" else 2 * jnp.pi * self.rate * t
-        return jnp.deg2rad(self.amplitude_deg) * jnp.sin(x + jnp.deg2rad(self.phase_deg))
+        return jnp.deg2rad(self.amplitude(speed_rpm)) * jnp.sin(x + jnp.deg2rad(self.phase_deg))
 
 
 class Decoupler(eqx.Module):

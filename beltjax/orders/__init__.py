@@ -1,0 +1,9 @@
+"""Responses over engine speed (``beltjax orders``): the periodic steady state of a drive at each
+speed, batched and differentiable (:mod:`beltjax.orders.steady`, :mod:`beltjax.orders.run`)."""
+
+from beltjax.orders.run import (MAX_SPEEDS, SETTLE_TOL, STATUS, OrdersError, OrdersResult, check,
+                                over_speed, response_over_speed)
+from beltjax.orders.steady import CHANNELS, Settings, cycle_revolutions, steady_case
+
+__all__ = ["CHANNELS", "MAX_SPEEDS", "SETTLE_TOL", "STATUS", "OrdersError", "OrdersResult", "Settings", "check",
+           "cycle_revolutions", "over_speed", "response_over_speed", "steady_case"]

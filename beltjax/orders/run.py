@@ -1,0 +1,243 @@
+"""Responses over engine speed: the periodic steady state at each speed of a list
+(:func:`beltjax.orders.steady.steady_case`), batched with ``vmap`` in padded chunks of one
+compiled shape, the speeds that had not settled run again with a longer settling time, and the
+result gathered with a status per speed."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import time
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import drive, friction, parameters
+from beltjax.errors import BeltjaxError
+from beltjax.orders.steady import CHANNELS, Settings, cycle_revolutions, steady_case
+from beltjax.scene import Scene
+from beltjax.transient_outputs import _columns
+
+#: settling residual (-) above which a speed counts as not settled (:func:`steady_case`)
+SETTLE_TOL = 1e-2
+#: the settling time of the speeds that had not settled is multiplied by this, once
+RETRY_FACTOR = 4.0
+#: most speeds of one response
+MAX_SPEEDS = 2000
+#: samples per excitation cycle accepted
+MIN_SAMPLES, MAX_SAMPLES = 16, 4096
+#: the status of a speed, worst first
+STATUS = ("not_converged", "solver_failed", "supercritical", "span_slack", "not_settled", "ok")
+
+
+class OrdersError(BeltjaxError):
+    """A response over speed that cannot be run (one-line message naming the key)."""
+
+
+def check(scene: Scene, rpm) -> None:
+    """Refuse (:class:`OrdersError`) what has no periodic steady state in crank angle: a drive
+    pulley that is not driven, a run-up, excitation at a fixed frequency (Hz) or a crank trace
+    against time, the hybrid fidelity, loads that switch on or off or vary at a fixed frequency, span loads; speeds
+    that are not positive and finite."""
+    rpm = np.asarray(rpm, dtype=float)
+    if rpm.ndim != 1 or rpm.size == 0:
+        raise OrdersError("rpm: give at least one speed", "rpm")
+    if rpm.size > MAX_SPEEDS:
+        raise OrdersError(f"rpm: {rpm.size} speeds, at most {MAX_SPEEDS}", "rpm")
+    if not np.all(np.isfinite(rpm) & (rpm > 0)):
+        raise OrdersError(f"rpm: every speed must be finite and > 0 rpm, got {rpm[~(np.isfinite(rpm) & (rpm > 0))][0]!r}",
+                          "rpm")
+    if drive.spans_of(scene).independent:
+        raise OrdersError("model.fidelity: a response over speed runs the rotational model (its adaptive explicit "
+                          "steps); give fidelity = \"rotational\", or run the hybrid model's transient with "
+                          "beltjax simulate at chosen speeds", "model.fidelity")
+    d = scene.route.order[drive.drive_pulley(scene)]
+    if drive.is_free(scene)[drive.drive_pulley(scene)]:
+        raise OrdersError(f"pulley {d!r}: a response over speed needs a driven drive pulley (driven = true): "
+                          "its speed_rpm is what the response runs over", f"pulley.{d}.driven")
+    p = scene.pulley(d)
+    if float(p.acceleration_rpm_per_s) != 0.0:
+        raise OrdersError(f"pulley.{d}.acceleration_rpm_per_s: a run-up has no steady state; give 0 for a response "
+                          "over speed", f"pulley.{d}.acceleration_rpm_per_s")
+    if float(p.fluctuation_amplitude_deg) != 0.0:
+        raise OrdersError(f"pulley.{d}.fluctuation_frequency_hz: a fluctuation at a fixed frequency does not follow "
+                          "the speed; give it as a [[fluctuation]] order", f"pulley.{d}.fluctuation_frequency_hz")
+    for i, f in enumerate(scene.fluctuations):
+        key = f.key or f"fluctuation[{i}]"
+        if f.per != "rev":
+            what = "a crank trace against time" if f.file else "a frequency in Hz"
+            raise OrdersError(f"{key}: {what} does not follow the speed; give orders (order = ...) or a trace against "
+                              "crank angle for a response over speed", key)
+    if cycle_revolutions(scene) > 1 and any(
+            abs(float(f.rate) * cycle_revolutions(scene) - round(float(f.rate) * cycle_revolutions(scene))) > 1e-9
+            for f in scene.fluctuations):
+        raise OrdersError("fluctuation: the orders repeat over no cycle of at most 8 crank revolutions", "fluctuation")
+    for i, load in enumerate(scene.torques):
+        if load.t_end_s is not None or float(load.t_start_s) > 0.0:
+            raise OrdersError(f"torque[{i}]: a load that switches on or off has no steady state; leave out t_start_s "
+                              "and t_end_s for a response over speed", f"torque[{i}]")
+        if float(load.amplitude_Nm) != 0.0:
+            raise OrdersError(f"torque[{i}].amplitude_Nm: a load varying at a fixed frequency does not follow the "
+                              "speed; give 0 for a response over speed", f"torque[{i}].amplitude_Nm")
+    if scene.span_loads:
+        raise OrdersError("span_load: span loads have no steady state; leave them out for a response over speed",
+                          "span_load")
+
+
+def over_speed(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -> dict:
+    """:func:`~beltjax.orders.steady.steady_case` at every speed of ``rpm`` (S,) (rev/min), as one
+    pure, vmapped function of the parameter ``values`` {path: value}: differentiable (``jax.grad``)
+    for losses over speed, e.g. the largest arm motion over an idle band.  ``settings.revolutions``
+    must be :func:`~beltjax.orders.steady.cycle_revolutions` of the scene (see
+    :func:`response_over_speed` for the checked, chunked entry point)."""
+    return jax.vmap(lambda r: steady_case(scene, values, r, settle_s, settings))(jnp.asarray(rpm))
+
+
+@functools.cache
+def _batch(settings: Settings, keys: tuple[str, ...]) -> Callable:
+    """jit(vmap(steady_case)) over (values (B, len(keys)), rpm (B,), settle_s (B,)); one per settings."""
+
+    def one(scene, x, rpm, settle):
+        return steady_case(scene, dict(zip(keys, x)), rpm, settle, settings)
+
+    return jax.jit(jax.vmap(one, in_axes=(None, 0, 0, 0)))
+
+
+def default_chunk(n: int) -> int:
+    """Speeds per compiled batch: all of them on an accelerator, up to 32 on a CPU (the batch runs
+    in lock-step to its slowest speed, and the chunks give progress)."""
+    if jax.default_backend() != "cpu":
+        return max(1, n)
+    return max(1, min(n, 32))
+
+
+@dataclasses.dataclass
+class OrdersResult:
+    """A response over speed.
+
+    rpm (S,) the drive pulley's speeds; stats: ``{channel}:{stat}`` -> (S, ...) arrays
+    (:func:`beltjax.orders.steady.steady_case`), min_slip_margin (S, arcs), max_friction_needed
+    (S, n); hub_forces_N (S, K, bearings, 2) over the cycle, t_s (S, K); status (S,) of
+    :data:`STATUS`; settling (S,); columns: channel -> column labels; orders: the crank orders of
+    the ``:orders`` arrays; units: channel -> unit; meta: settings, times, steps."""
+
+    rpm: np.ndarray
+    stats: dict
+    columns: dict
+    orders: list
+    status: list
+    settling: np.ndarray
+    units: dict
+    meta: dict
+
+    def channel(self, name: str, stat: str) -> np.ndarray:
+        """The (S, ...) array of one channel's statistic (mean, min, max, p2p or orders)."""
+        return self.stats[f"{name}:{stat}"]
+
+    def to_json(self) -> dict:
+        """JSON-ready: speeds, status, every statistic with its columns and units."""
+        stats = {k: np.asarray(v) for k, v in self.stats.items() if k not in ("hub_forces_N", "t_s")}
+        return dict(meta=self.meta, rpm=self.rpm, status=self.status, settling=self.settling, orders=self.orders,
+                    units=self.units, columns=self.columns, stats=stats)
+
+
+def _status(out: dict, settle_tol: float) -> list[str]:
+    conds = dict(
+        not_converged=out["converged"] < 0.5,
+        solver_failed=out["solver_ok"] < 0.5,
+        supercritical=out["supercritical"] > 0.5,
+        span_slack=out["min_span_tension_N"] <= 0.0,
+        not_settled=~(out["settling"] <= settle_tol),
+    )
+    res = []
+    for i in range(len(out["settling"])):
+        res.append(next((k for k in STATUS[:-1] if conds[k][i]), "ok"))
+    return res
+
+
+def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle_s: float = 1.0,
+                        settings: Settings | None = None, chunk: int | None = None,
+                        settle_tol: float = SETTLE_TOL, progress: Callable[[int, int], None] | None = None
+                        ) -> OrdersResult:
+    """The periodic steady state of ``scene`` at each drive-pulley speed of ``rpm`` (rev/min):
+    per channel its mean, min, max, peak-to-peak and order amplitudes over one excitation cycle,
+    the least slip margin of each arc, the hub-force loci.
+
+    values: {parameter path: value} set on the scene for every speed; settle_s: transient time
+    (s) before the recorded cycle (speeds whose settling residual stays above ``settle_tol`` are
+    run again with :data:`RETRY_FACTOR` times it, then flagged ``not_settled``); settings:
+    :class:`~beltjax.orders.steady.Settings` (samples per cycle, highest order, tolerances);
+    chunk: speeds per compiled batch (:func:`default_chunk`); progress(done, total).  Raises
+    :class:`OrdersError` for a scene or speeds without a steady state in crank angle
+    (:func:`check`)."""
+    scene = drive.canonical(scene)
+    rpm = np.asarray(rpm, dtype=float).ravel()
+    check(scene, rpm)
+    if not (math.isfinite(settle_s) and settle_s >= 0):
+        raise OrdersError(f"settle_s: must be a finite time >= 0 s, got {settle_s!r}", "settle_s")
+    values = dict(values or {})
+    for k, val in values.items():
+        parameters.check(scene, k)
+        parameters.check_value(k, val)
+    settings = settings or Settings()
+    settings = dataclasses.replace(settings, revolutions=cycle_revolutions(scene))
+    if not MIN_SAMPLES <= settings.samples <= MAX_SAMPLES:
+        raise OrdersError(f"samples: {settings.samples} samples per cycle; give {MIN_SAMPLES} to {MAX_SAMPLES}", "samples")
+    need = 2 * settings.max_order * settings.revolutions + 2
+    if not (math.isfinite(settings.max_order) and settings.max_order * settings.revolutions >= 1):
+        raise OrdersError(f"max_order: {settings.max_order!r} reports no order of a {settings.revolutions}-revolution "
+                          "cycle; give at least 1 / (revolutions per cycle)", "max_order")
+    if settings.samples < need:
+        raise OrdersError(f"max_order: order {settings.max_order:g} needs at least {math.ceil(need)} samples per cycle "
+                          f"(now {settings.samples}): raise samples or lower max_order", "max_order")
+    keys = tuple(sorted(values))
+    x = np.asarray([[float(values[k]) for k in keys]], dtype=float)
+    fn = _batch(settings, keys)
+    size = chunk or default_chunk(rpm.size)
+
+    def run(speeds, settle):
+        parts, done = [], 0
+        for a in range(0, speeds.size, size):
+            r = speeds[a : a + size]
+            pad = np.concatenate([r, np.full(size - r.size, r[-1])])
+            got = fn(scene, jnp.asarray(np.repeat(x, size, axis=0)), jnp.asarray(pad), jnp.full(size, settle))
+            parts.append({k: np.asarray(v)[: r.size] for k, v in got.items()})
+            done += r.size
+            if progress is not None:
+                progress(done, speeds.size)
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+    t0 = time.perf_counter()
+    out = run(rpm, settle_s)
+    retry = np.flatnonzero(~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5))
+    if retry.size:
+        again = run(rpm[retry], settle_s * RETRY_FACTOR)
+        for k in out:
+            out[k][retry] = again[k]
+    wall = time.perf_counter() - t0
+    cols = _columns(scene)
+    columns = {}
+    for name in CHANNELS:
+        if f"{name}:mean" in out:
+            columns[name] = cols.get(name, [])
+    order = list(scene.route.order)
+    columns["max_friction_needed"] = order
+    if "min_slip_margin" in out:
+        columns["min_slip_margin"] = [order[i] for i in friction.given(scene)]
+    columns["hub_forces_N"] = cols["hub_forces_N"]
+    stats = {k: v for k, v in out.items() if ":" in k or k in ("min_slip_margin", "max_friction_needed",
+                                                               "hub_forces_N", "t_s")}
+    units = {k: u for k, u in CHANNELS.items() if k in columns}
+    units.update(min_slip_margin="-", max_friction_needed="-", hub_forces_N="N")
+    meta = dict(
+        fidelity=scene.model.fidelity, drive_pulley=order[drive.drive_pulley(scene)], settle_s=settle_s,
+        settle_tol=settle_tol, rerun_speeds=int(retry.size), revolutions_per_cycle=settings.revolutions,
+        samples_per_cycle=settings.samples, rtol=settings.rtol, atol=settings.atol, solver="dopri8",
+        steps=out["steps"].astype(int).tolist(), t_end_s=out["t_end_s"].tolist(), wall_s=wall, chunk=size,
+        values={k: float(v) for k, v in values.items()},
+    )
+    return OrdersResult(rpm=rpm, stats=stats, columns=columns, orders=settings.orders(),
+                        status=_status(out, settle_tol), settling=out["settling"], units=units, meta=meta)

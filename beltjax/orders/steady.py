@@ -1,0 +1,178 @@
+"""The periodic steady state of a drive at one engine speed, as one pure JAX function (jit, vmap,
+grad): the operating point under the mean loads, a transient of the scene's excitation from it
+until the start-up has died out, and one recorded excitation cycle reduced to what an engineer
+reads against speed (mean, min, max, peak-to-peak, order amplitudes, least slip margin).
+
+A case is the scene with parameter ``values`` set and the drive pulley at ``rpm``; every crank
+order of the scene's ``[[fluctuation]]`` follows the speed (its frequency is order x rpm / 60).
+The excitation cycle is the least whole number of crank revolutions over which every order
+repeats (1 for whole orders, 2 with half orders: :func:`cycle_revolutions`).  The transient runs
+the scene's equations (:func:`beltjax.transient.vector_field`) with an adaptive explicit pair
+(Dopri8, the rotational model's default) from t = 0 to the end of the recorded cycle, the first
+whole cycle after ``settle_s``.  A second cycle is recorded at half that time; the largest
+change of the state between the two, against its range over the cycle, is the ``settling``
+residual (a start-up transient decaying as exp(-s t) leaves A exp(-s t) at the end and changed
+by A (exp(-s t/2) - exp(-s t)) between the cycles: once that change is small against the
+response, what is left is smaller still whenever s t/2 > ln 2).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from fractions import Fraction
+
+import diffrax
+import jax
+import jax.numpy as jnp
+
+from beltjax import critical, drive, friction, parameters, statics
+from beltjax.scene import Scene
+from beltjax.transient import isolator_wind_up, vector_field
+from beltjax.transient_outputs import _outputs_one
+
+#: the channels reduced over the cycle (those a scene has), with their units
+CHANNELS = dict(
+    arm_angle_deg="deg",
+    span_tensions_N="N",
+    hub_force_magnitudes_N="N",
+    pulley_speeds_rpm="rpm",
+    drive_torques_Nm="N m",
+    spring_moment_Nm="N m",
+    isolator_moment_Nm="N m",
+    rotor_speeds_rpm="rpm",
+    decoupler_moments_Nm="N m",
+)
+#: the statistics of each channel over the recorded cycle
+STATS = ("mean", "min", "max", "p2p")
+#: most crank revolutions of one excitation cycle (orders given to 1/MAX_REVOLUTIONS)
+MAX_REVOLUTIONS = 8
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """Static settings of the compiled steady-state function (hashable).
+
+    samples: output samples per excitation cycle; max_order: highest crank order reported;
+    rtol, atol: the adaptive step's tolerances; max_steps: most steps of one case's transient;
+    revolutions: crank revolutions per excitation cycle (:func:`cycle_revolutions`)."""
+
+    samples: int = 128
+    max_order: float = 8.0
+    rtol: float = 1e-7
+    atol: float = 1e-9
+    max_steps: int = 1_000_000
+    revolutions: int = 1
+
+    @property
+    def harmonics(self) -> int:
+        """Number of harmonics of the cycle reported (orders k / revolutions, k = 1..harmonics)."""
+        return min(int(math.floor(self.max_order * self.revolutions + 1e-9)), self.samples // 2 - 1)
+
+    def orders(self) -> list[float]:
+        """The crank orders of the reported harmonics."""
+        return [k / self.revolutions for k in range(1, self.harmonics + 1)]
+
+
+def cycle_revolutions(scene: Scene) -> int:
+    """Crank revolutions per excitation cycle: the least n with n x order whole for every order of
+    the scene's per-revolution fluctuations (1 without any).  Orders that need more than
+    :data:`MAX_REVOLUTIONS` revolutions (or fluctuations at a fixed frequency in Hz, or a trace
+    against time) make no cycle in crank angle: the caller refuses or flags them."""
+    n = 1
+    for f in scene.fluctuations:
+        if f.per == "rev":
+            q = Fraction(float(f.rate)).limit_denominator(MAX_REVOLUTIONS)
+            n = n * q.denominator // math.gcd(n, q.denominator)
+    return n
+
+
+def speed_path(scene: Scene) -> str:
+    """The parameter path of the drive pulley's speed (rpm)."""
+    return f"pulley.{scene.route.order[drive.drive_pulley(scene)]}.speed_rpm"
+
+
+def _reduce(x, settings: Settings):
+    """Statistics of samples x (K, ...) over one cycle: mean, min, max, p2p and the order amplitudes
+    (..., harmonics) (half the peak-to-peak of each harmonic, the channel's units)."""
+    K = x.shape[0]
+    X = jnp.fft.rfft(x, axis=0)[1 : settings.harmonics + 1]
+    amp = 2.0 * jnp.abs(X) / K
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    return dict(mean=x.mean(axis=0), min=lo, max=hi, p2p=hi - lo, orders=jnp.moveaxis(amp, 0, -1))
+
+
+def _settling(y_early, y_late, n: int):
+    """Largest change of the state between two phase-aligned cycles (K, 2n) against the state's
+    range over the late cycle, for positions and speeds apart (-)."""
+    def part(a, b):
+        span = jnp.max(b.max(axis=0) - b.min(axis=0))
+        return jnp.max(jnp.abs(b - a)) / jnp.maximum(span, 1e-300)
+
+    return jnp.maximum(part(y_early[:, :n], y_late[:, :n]), part(y_early[:, n:], y_late[:, n:]))
+
+
+def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -> dict:
+    """The periodic steady state of ``scene`` with ``values`` {path: value} set, drive pulley at
+    ``rpm`` (rev/min), after at least ``settle_s`` (s) of transient (pure JAX: jit, vmap, grad).
+
+    Returns: per channel of :data:`CHANNELS` the scene has, ``{channel}:{stat}`` for each of
+    :data:`STATS` ((k,) or () in the channel's units) and ``{channel}:orders`` ((k, H) or (H,):
+    amplitudes of the orders :meth:`Settings.orders`); ``min_slip_margin`` (per arc with a friction
+    coefficient, the least over the cycle, -), ``max_friction_needed`` (per route entry, -);
+    ``hub_forces_N`` (K, bearings, 2): the hub force vectors over the cycle (N); ``t_s`` (K,)
+    the recorded times (s); ``settling`` (-): :func:`_settling`; ``converged`` (statics) and
+    ``solver_ok`` (the transient reached the end) and ``supercritical`` (a span past its critical
+    speed at the operating point: :mod:`beltjax.critical`) as 1.0 / 0.0; ``min_span_tension_N``; ``t_end_s``; ``steps``."""
+    path = speed_path(scene)
+    sign = jnp.where(parameters.get_value(scene, path) < 0, -1.0, 1.0)  # the scene's sense of rotation
+    sc = parameters.set_values(scene, {**values, path: sign * jnp.abs(rpm)})
+    inst = statics.install(sc)
+    v = drive.belt_speed(sc)
+    loaded = drive.lasting_loads(sc)
+    qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, loaded=loaded)
+    torque = drive.drive_torque(qi, sc, inst, v, loaded)
+    qi = isolator_wind_up(sc, inst, qi, torque)
+    y0 = jnp.concatenate([qi, jnp.zeros_like(qi)])
+    n = qi.shape[0]
+
+    K = settings.samples
+    period = settings.revolutions * 60.0 / jnp.abs(rpm)  # s, one excitation cycle
+    cycles = jnp.maximum(jnp.ceil(settle_s / period), 2.0)
+    t_late = cycles * period
+    t_early = jnp.floor(cycles / 2) * period
+    phase = period * jnp.arange(K + 1) / K
+    ts = jnp.concatenate([t_early + phase, t_late + phase])
+    term = diffrax.ODETerm(vector_field(sc, inst))
+    ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=period / 8)
+    sol = diffrax.diffeqsolve(term, diffrax.Dopri8(), t0=0.0, t1=ts[-1], dt0=jnp.minimum(1e-4, period / 64), y0=y0,
+                              saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
+                              max_steps=settings.max_steps, throw=False)
+    ys = sol.ys
+    early, late = ys[: K + 1], ys[K + 1 :]
+    t_rec = ts[K + 1 : -1]
+    M_full = drive.full_mass_matrix(sc, inst)
+    chans = jax.vmap(lambda t, y: _outputs_one(t, y, sc, inst, M_full))(t_rec, late[:-1])
+    free = drive.is_free(sc)
+    if "drive_torques_Nm" in chans:
+        chans["drive_torques_Nm"] = chans["drive_torques_Nm"][:, [i for i, f in enumerate(free) if not f]]
+    out: dict = {}
+    for name in CHANNELS:
+        if name not in chans or chans[name].shape[1:] == (0,):
+            continue
+        for stat, val in _reduce(chans[name], settings).items():
+            out[f"{name}:{stat}"] = val
+    need, margins = friction.arc_margins(sc, chans["_pulley_forces_N"], inst.wrap)
+    out["max_friction_needed"] = jnp.max(need, axis=0)
+    if margins.shape[-1]:
+        out["min_slip_margin"] = jnp.min(margins, axis=0)
+    out["hub_forces_N"] = chans["hub_forces_N"]
+    out["t_s"] = t_rec
+    out["settling"] = _settling(early, late, n)
+    out["converged"] = conv
+    out["supercritical"] = critical.supercritical(sc, qi, inst, v).astype(jnp.float64)
+    out["solver_ok"] = (sol.result == diffrax.RESULTS.successful).astype(jnp.float64)
+    out["t_end_s"] = ts[-1]
+    out["steps"] = sol.stats["num_steps"].astype(jnp.float64)
+    out["min_span_tension_N"] = jnp.min(chans["span_tensions_N"])
+    return out

@@ -1,0 +1,179 @@
+"""Responses over engine speed (beltjax.orders): the periodic steady state at each speed, batched
+with vmap (equal to one-by-one runs and to a plain transient), its order content, its gradient
+against finite differences, the command and its bad inputs."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from beltjax import cli, drive, orders, transient
+from beltjax.scene import loads_scene
+from tests._scenes import scene_text
+
+SPEEDS = [500.0, 600.0, 700.0]
+
+
+def _small(tables: str = "", load: float = 5.0) -> str:
+    """The thesis' tensioner bench (crank, tensioner, alternator; rotational) with a constant
+    alternator load and the given [[fluctuation]] tables instead of its own excitation."""
+    t = scene_text("sim_tensioner_fluctuation_load.toml")
+    t = re.sub(r"fluctuation_amplitude_deg.*\n|fluctuation_frequency_hz.*\n", "", t)
+    t = re.sub(r"\[\[torque\]\][^\[]*", "", t)
+    t = re.sub(r"\[simulation\][^\[]*", "", t)
+    return t + f'\n[[torque]]\npulley = "alternator"\nmean_Nm = {load}\n' + tables
+
+
+def _order(n, amp):
+    return f'[[fluctuation]]\npulley = "crank"\norder = {n}\namplitude_deg = {amp}\n'
+
+
+SCENE = _small(_order(2.0, 0.5))
+
+
+@pytest.fixture(scope="module")
+def batched():
+    return orders.response_over_speed(loads_scene(SCENE), SPEEDS, settle_s=1.0)
+
+
+def test_batched_equals_one_by_one(batched):
+    """One vmapped batch of three speeds gives what three single runs give (adaptive steps per case)."""
+    one = orders.response_over_speed(loads_scene(SCENE), SPEEDS, settle_s=1.0, chunk=1)
+    assert batched.status == one.status == ["ok"] * 3
+    for k, v in batched.stats.items():
+        a, b = np.asarray(v), np.asarray(one.stats[k])
+        assert np.max(np.abs(a - b)) <= 1e-7 * max(np.max(np.abs(a)), 1e-12), k
+
+
+def test_steady_state_is_the_transient_and_periodic(batched):
+    """The recorded cycle at 600 rpm is the plain transient (beltjax simulate) at the same times;
+    a second-order excitation gives a response of half a revolution: odd orders vanish."""
+    sc = loads_scene(SCENE)
+    rpm, K = 600.0, orders.Settings().samples
+    period = 60.0 / rpm
+    t_end = float(batched.meta["t_end_s"][1])
+    res = transient.simulate(sc, t_end, output_dt=period / K)
+    t_rec = batched.stats["t_s"][1]
+    idx = np.rint(t_rec / (period / K)).astype(int)
+    assert np.allclose(res.t[idx], t_rec, rtol=0, atol=1e-9)
+    arm = res.channels["arm_angle_deg"][idx]
+    assert np.max(np.abs(arm.max() - batched.channel("arm_angle_deg", "max")[1])) < 1e-5
+    assert abs((arm.max() - arm.min()) - batched.channel("arm_angle_deg", "p2p")[1]) < 1e-5
+    amp = batched.channel("arm_angle_deg", "orders")  # (speeds, orders 1..8)
+    assert batched.orders[:4] == [1.0, 2.0, 3.0, 4.0]
+    assert np.all(amp[:, 1] > 0.1)  # the 2nd order drives the arm by tenths of a degree
+    assert np.all(amp[:, [0, 2, 4, 6]] < 1e-4 * amp[:, [1]])
+    assert np.all(batched.settling < orders.SETTLE_TOL)
+
+
+def test_mean_is_the_operating_point_and_small_excitation_is_linear():
+    """Without excitation the steady state is the operating point (no motion); a small excitation
+    gives an order-2 response proportional to it."""
+    from beltjax import statics
+
+    S = orders.Settings(samples=32, max_order=4.0)
+    run = jax.jit(lambda sc: orders.over_speed(sc, {}, jnp.asarray([600.0]), 1.0, S))  # one compilation
+
+    def of(amp):
+        return run(drive.canonical(loads_scene(_small(_order(2.0, amp)))))
+
+    out = of(0.0)
+    st = statics.analyse_statics(loads_scene(_small(_order(2.0, 0.0))))
+    assert abs(float(out["arm_angle_deg:mean"][0]) - st.tensioner_angle_deg) < 1e-8
+    assert float(out["arm_angle_deg:p2p"][0]) < 1e-8
+    a, b = of(0.01), of(0.02)
+    ra = float(a["arm_angle_deg:orders"][0, 1])
+    assert ra > 0
+    assert abs(float(b["arm_angle_deg:orders"][0, 1]) / ra - 2.0) < 2e-3
+
+
+def test_gradient_over_speed_matches_finite_differences():
+    """d/dp of the largest arm motion over three speeds, for the tensioner's damping and spring rate."""
+    sc = drive.canonical(loads_scene(SCENE))
+    S = orders.Settings(samples=64, max_order=4.0)
+    rpm = jnp.asarray(SPEEDS)
+
+    def loss(c, k):
+        out = orders.over_speed(sc, {"tensioner.damping": c, "tensioner.spring_stiffness": k}, rpm, 0.5, S)
+        return jnp.max(out["arm_angle_deg:p2p"])
+
+    c0, k0 = 0.1, 21.14
+    value, grad = jax.jit(jax.value_and_grad(loss, argnums=(0, 1)))(c0, k0)
+    f = jax.jit(loss)
+    h = 1e-4
+    fd_c = (f(c0 * (1 + h), k0) - f(c0 * (1 - h), k0)) / (2 * h * c0)
+    fd_k = (f(c0, k0 * (1 + h)) - f(c0, k0 * (1 - h))) / (2 * h * k0)
+    assert float(value) > 0.5
+    assert abs(float(grad[0]) - float(fd_c)) < 1e-5 * abs(float(fd_c))
+    assert abs(float(grad[1]) - float(fd_k)) < 1e-5 * abs(float(fd_k))
+
+
+def test_cycle_of_half_orders():
+    """Half orders make a cycle of two revolutions; thirds of three; none stays 1."""
+    def revs(*n):
+        return orders.cycle_revolutions(loads_scene(_small("".join(_order(x, 0.1) for x in n))))
+
+    assert revs() == 1 and revs(2.0, 4.0) == 1
+    assert revs(1.5, 3.0) == 2
+    assert revs(0.5, 1.0 / 3.0) == 6
+    S = orders.Settings(revolutions=2, max_order=2.0)
+    assert S.orders() == [0.5, 1.0, 1.5, 2.0]
+
+
+def test_command_writes_its_files(tmp_path, capsys):
+    """beltjax orders: exit 0, the table, orders.json / .csv / .npz and the figures."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(SCENE)
+    out = tmp_path / "out"
+    assert cli.main(["orders", str(scene), "--rpm", "500:700:100", "--settle-s", "1", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "largest arm motion" in text and "3 speeds 500-700 rpm" in text
+    data = json.loads((out / "orders.json").read_text())
+    assert data["status"] == ["ok"] * 3 and len(data["stats"]["arm_angle_deg:p2p"]) == 3
+    head = (out / "orders.csv").read_text().splitlines()[0].split(",")
+    assert head[:2] == ["rpm", "status"] and "arm_angle_deg:order_2" in head
+    assert "span_tensions_N[crank-tensioner]:p2p" in head
+    for name in ("orders.npz", "order_maps.png", "envelopes.png", "hub_loci.png"):
+        assert (out / name).stat().st_size > 0
+
+
+@pytest.mark.parametrize("change, key", [
+    (lambda t: t.replace('fidelity = "rotational"', 'fidelity = "hybrid"\nelements_per_span = 2'), "model.fidelity"),
+    (lambda t: t.replace("mean_Nm = 5.0", "mean_Nm = 5.0\nt_end_s = 1.0"), "torque[0]"),
+    (lambda t: t.replace("mean_Nm = 5.0", "mean_Nm = 5.0\namplitude_Nm = 1.0\nfrequency_hz = 10.0"),
+     "torque[0].amplitude_Nm"),
+    (lambda t: t.replace("order = 2.0", "frequency_hz = 20.0"), "fluctuation[0]"),
+    (lambda t: t.replace("speed_rpm = 600.0", "speed_rpm = 600.0\nacceleration_rpm_per_s = 100.0"),
+     "pulley.crank.acceleration_rpm_per_s"),
+])
+def test_what_has_no_steady_state_is_refused(tmp_path, capsys, change, key):
+    """One line naming the key, exit 2, no outputs."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(change(SCENE))
+    out = tmp_path / "out"
+    assert cli.main(["orders", str(scene), "--rpm", "500:700:100", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and key in err[0], err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, key", [
+    (["--rpm", "0:700:100"], "rpm"),
+    (["--rpm", "500:700:100", "--samples", "8"], "samples"),
+    (["--rpm", "500:700:100", "--max-order", "100"], "max_order"),
+    (["--rpm", "500:700:100", "--settle-s", "-1"], "settle-s"),
+])
+def test_bad_arguments(tmp_path, capsys, args, key):
+    scene = tmp_path / "s.toml"
+    scene.write_text(SCENE)
+    out = tmp_path / "out"
+    assert cli.main(["orders", str(scene), *args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and key in err[0], err
+    assert not out.exists()
