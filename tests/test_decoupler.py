@@ -67,7 +67,7 @@ def test_a_stiff_locked_decoupler_is_the_pulley_with_the_rotors_inertia():
 def overrun():
     """The eight-pulley drive at idle with a strong 2nd order (1.5 deg) and a soft decoupler:
     the alternator pulley decelerates faster than its rotor can, 0.3 s."""
-    text = _with_decoupler(30.0, FEAD.replace("amplitude_deg = 0.5", "amplitude_deg = 1.5", 1))
+    text = _with_decoupler(30.0, FEAD.replace("amplitude_deg = [0.5,", "amplitude_deg = [1.5,", 1))
     sc = loads_scene(text)
     return sc, transient.simulate(sc, 0.3)
 

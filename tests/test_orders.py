@@ -177,3 +177,39 @@ def test_bad_arguments(tmp_path, capsys, args, key):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and key in err[0], err
     assert not out.exists()
+
+
+def test_sweep_response_output_equals_the_response(tmp_path):
+    """beltjax sweep's response output: each case's steady state is response_over_speed's with
+    that case's values (a tolerance study of the tensioner's damping and the belt length)."""
+    from beltjax import sweep
+
+    sc = loads_scene(SCENE)
+    values = {"tensioner.damping": np.array([0.08, 0.12]), "belt.length": np.array([1.786, 1.789])}
+    res = sweep.evaluate(sc, values, ("statics", "response"), settle_s=1.0)
+    assert list(res["status"]) == ["ok", "ok"]
+    cols = sweep.columns(sc, res)
+    for i in range(2):
+        one = orders.response_over_speed(sc, [600.0], values={k: v[i] for k, v in values.items()}, settle_s=1.0)
+        assert abs(cols["arm_p2p_deg"][i] - one.channel("arm_angle_deg", "p2p")[0]) < 1e-7
+        assert np.allclose(res["response_span_p2p_N"][i], one.channel("span_tensions_N", "p2p")[0], rtol=1e-7)
+    assert abs(cols["arm_p2p_deg"][0] - cols["arm_p2p_deg"][1]) > 0.1  # the tolerances move the arm's motion
+
+
+def test_optimize_arm_motion_over_an_idle_band():
+    """beltjax optimize's arm_motion objective: the tensioner's damping raised to cut the arm's
+    largest peak-to-peak over 500-700 rpm (gradients through the steady states)."""
+    from beltjax import optimize
+
+    sc = loads_scene(SCENE)
+    spec = {"steps": 6, "min_steps": 6, "starts": 1, "learning_rate": 0.2,
+            "variable": [{"parameter": "tensioner.damping", "lower": 0.05, "upper": 2.0}],
+            "objective": [{"kind": "arm_motion", "rpm": [500.0, 700.0], "speeds": 3, "settle_s": 0.5}]}
+    problem = optimize.parse(spec, sc)
+    res = optimize.optimise(sc, problem)
+    name = "objective[0] arm_motion"
+    assert res.x[0] > res.x0[0]
+    assert res.terms[name] < 0.8 * res.terms0[name]
+    bad = dict(spec, objective=[{"kind": "arm_motion", "rpm": [0.0, 700.0]}])
+    with pytest.raises(optimize.OptimizeError, match=r"objective\[0\]\.rpm"):
+        optimize.parse(bad, sc)

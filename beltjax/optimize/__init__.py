@@ -38,6 +38,13 @@ the optimisation (the result is checked with the scene's own mesh at the end);
     pulley = "alternator"                # a route entry ("tensioner" for the idler)
     weight = 0.001                       # the term is weight * |F| / (1 N)
 
+    [[objective]]
+    kind = "arm_motion"                  # the tensioner arm's largest peak-to-peak (deg) in the
+    rpm = [700, 1000]                    #   periodic steady state over a crank speed band (beltjax
+    speeds = 5                           #   orders: needs a driven crank, orders, lasting loads);
+    settle_s = 1.0                       #   speeds sampled (default 5), transient before the cycle (s)
+    weight = 1.0                         # the term is weight * max p2p / (1 deg)
+
     [[constraint]]                       # all optional; each adds weight * sum((violation/unit)^2)
     kind = "min_wrap_deg"                # wrap angle >= value on one pulley (key pulley) or on all
     value = 150

@@ -93,6 +93,15 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     if any(c.kind == "min_slip_margin" for c in problem.constraints):  # the arcs' slip margins (capstan law)
         m["slip_margins"] = friction.arc_margins(sc, force[0], inst.wrap)[1]
         ok = ok & jnp.all(jnp.isfinite(m["slip_margins"]))
+    motion = [o for o in problem.objectives if o.kind == "arm_motion"]
+    if motion:  # the periodic steady state over each band (beltjax.orders): the arm's peak-to-peak
+        from beltjax.orders import Settings, over_speed
+
+        runs = [over_speed(sc, {}, jnp.linspace(o.rpm[0], o.rpm[1], o.speeds), o.settle_s,
+                           Settings(samples=64, max_order=4.0, revolutions=o.revolutions)) for o in motion]
+        m["arm_p2p_deg"] = jnp.concatenate([r["arm_angle_deg:p2p"] for r in runs])  # the bands' speeds in turn
+        ok = ok & jnp.all(jnp.stack([jnp.all(r["solver_ok"] > 0.5) for r in runs]))
+        ok = ok & jnp.all(jnp.isfinite(m["arm_p2p_deg"]))
     m["inst"] = inst
     m["feasible"] = ok & finite
     return m
@@ -191,11 +200,12 @@ def terms_from_measures(m: dict, scene: Scene, problem: Problem, masks, rpm=None
     masks: :func:`mode_masks`; rpm: the speeds the frequencies were computed at (default
     :func:`sample_rpm`).  A resonance term is weight * sum(need^2) (Hz^2, :func:`band_need`
     with :func:`band_weights`), a hub load
-    weight * |F| (N), a constraint weight * sum((violation / unit)^2).
+    weight * |F| (N), an arm motion weight * the arm's largest peak-to-peak over its band (deg), a
+    constraint weight * sum((violation / unit)^2).
     """
     xp = jnp if soft else np
     rpm = sample_rpm(problem) if rpm is None else rpm
-    out, j = {}, 0
+    out, j, k_motion = {}, 0, 0
     names = term_names(problem)
     starts = _band_starts(problem)
     for i, o in enumerate(problem.objectives):
@@ -205,6 +215,9 @@ def terms_from_measures(m: dict, scene: Scene, problem: Problem, masks, rpm=None
             need = band_need(m["freqs_hz"][sl], rpm[sl], np.asarray(o.orders), o.margin_hz, soft, w)
             out[names[i]] = o.weight * xp.sum(need**2)
             j += 1
+        elif o.kind == "arm_motion":  # the largest peak-to-peak over the band's speeds (deg)
+            out[names[i]] = o.weight * xp.max(m["arm_p2p_deg"][k_motion:k_motion + o.speeds])
+            k_motion += o.speeds
         else:
             F = m["hub_N"][scene.route.order.index(o.pulley)]
             out[names[i]] = o.weight * xp.sqrt(xp.sum(F**2))

@@ -17,7 +17,7 @@ from beltjax.tomltable import describe
 MAX_STARTS = 16
 #: temperature (Hz) of the log-sum-exp maximum over the sampled speeds
 SOFT_HZ = 0.5
-OBJECTIVES = ("resonance_band", "hub_load")
+OBJECTIVES = ("resonance_band", "hub_load", "arm_motion")
 CONSTRAINTS = ("min_wrap_deg", "static_tension", "arm_angle_deg", "no_overlap", "min_slip_margin")
 #: penalty unit and default tolerance of each constraint kind (its own units)
 _UNIT = {"min_wrap_deg": 1.0, "static_tension": 10.0, "arm_angle_deg": 1.0, "no_overlap": 1e-3, "min_slip_margin": 0.02}
@@ -31,6 +31,7 @@ _VARIABLE_KEYS = ("parameter", "lower", "upper", "scale")
 _OBJECTIVE_KEYS = {
     "resonance_band": ("kind", "orders", "rpm", "modes", "margin_hz", "tolerance_hz", "speeds", "weight"),
     "hub_load": ("kind", "pulley", "weight"),
+    "arm_motion": ("kind", "rpm", "speeds", "settle_s", "weight"),
 }
 _CONSTRAINT_KEYS = {
     "min_wrap_deg": ("kind", "value", "pulley", "weight", "tolerance"),
@@ -63,7 +64,9 @@ class Objective:
     """One objective term.  resonance_band: orders, rpm = (lo, hi) of the drive pulley (rpm),
     modes ("span", "all" or a number of lowest flexible modes), margin_hz (Hz), tolerance_hz
     (Hz: the shift still needed that counts as clear), speeds (samples in the band); hub_load:
-    pulley (a route entry).  weight >= 0."""
+    pulley (a route entry); arm_motion: rpm, speeds, settle_s (s: the transient before the
+    periodic steady state, :mod:`beltjax.orders`), revolutions (crank revolutions per excitation
+    cycle, the scene's: :func:`beltjax.orders.cycle_revolutions`).  weight >= 0."""
 
     kind: str
     weight: float = 1.0
@@ -74,6 +77,8 @@ class Objective:
     tolerance_hz: float = 0.05
     speeds: int = 9
     pulley: str = ""
+    settle_s: float = 1.0
+    revolutions: int = 1
 
 
 @dataclass(frozen=True)
@@ -174,18 +179,14 @@ def _parse_objective(d, i: int, scene: Scene) -> Objective:
     weight = t.number("weight", required=False, default=1.0, nonnegative=True)
     if kind == "hub_load":
         return Objective(kind, weight, pulley=_route_entry(t, "pulley", scene, True))
+    if kind == "arm_motion":
+        return _arm_motion(t, d, scene, weight)
     orders = d.get("orders")
     if (not isinstance(orders, list) or not orders
             or any(isinstance(k, bool) or not isinstance(k, (int, float)) or not 0 < k < math.inf for k in orders)):
         got = (describe(orders) if not isinstance(orders, list) else repr(orders)) if orders is not None else "nothing"
         t.fail("orders", f"expected a non-empty array of positive finite numbers, got {got}")
-    rpm = d.get("rpm")
-    if (not isinstance(rpm, list) or len(rpm) != 2
-            or any(isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) for r in rpm)):
-        got = describe(rpm) if rpm is not None else "nothing"
-        t.fail("rpm", f"expected [lower, upper] speeds of the drive pulley (rpm), got {got}")
-    if not 0 <= rpm[0] < rpm[1]:
-        t.fail("rpm", f"need 0 <= lower < upper, got {rpm!r}")
+    rpm = _band_rpm(t, d)
     modes = d.get("modes", "span")
     if isinstance(modes, bool) or not (modes in ("span", "all") or (isinstance(modes, int) and modes >= 1)):
         t.fail("modes", f"expected \"span\", \"all\" or a number of lowest modes >= 1, got {describe(modes)}")
@@ -195,6 +196,38 @@ def _parse_objective(d, i: int, scene: Scene) -> Objective:
         tolerance_hz=t.number("tolerance_hz", required=False, default=0.05, nonnegative=True),
         speeds=t.integer("speeds", required=False, default=9, minimum=2, maximum=64),
     )
+
+
+def _band_rpm(t, d) -> list:
+    """The objective's rpm = [lower, upper] (drive-pulley speeds, rpm, 0 <= lower < upper)."""
+    rpm = d.get("rpm")
+    if (not isinstance(rpm, list) or len(rpm) != 2
+            or any(isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) for r in rpm)):
+        got = describe(rpm) if rpm is not None else "nothing"
+        t.fail("rpm", f"expected [lower, upper] speeds of the drive pulley (rpm), got {got}")
+    if not 0 <= rpm[0] < rpm[1]:
+        t.fail("rpm", f"need 0 <= lower < upper, got {rpm!r}")
+    return rpm
+
+
+def _arm_motion(t, d, scene: Scene, weight: float) -> Objective:
+    """An arm_motion objective: the tensioner arm's largest peak-to-peak (deg) in the periodic
+    steady state over a speed band (the scene must have one: :func:`beltjax.orders.check`)."""
+    from beltjax.orders import OrdersError, check, cycle_revolutions
+
+    rpm = _band_rpm(t, d)
+    if rpm[0] <= 0:
+        t.fail("rpm", f"need 0 < lower: the steady state needs a turning crank, got {rpm!r}")
+    if scene.tensioner is None:
+        t.fail("kind", "arm_motion needs a [tensioner]")
+    try:
+        check(scene, rpm)
+    except OrdersError as exc:
+        t.fail("kind", f"arm_motion needs a periodic steady state: {exc}")
+    return Objective("arm_motion", weight, rpm=(float(rpm[0]), float(rpm[1])),
+                     speeds=t.integer("speeds", required=False, default=5, minimum=1, maximum=64),
+                     settle_s=t.number("settle_s", required=False, default=1.0, nonnegative=True),
+                     revolutions=cycle_revolutions(scene))
 
 
 def _parse_constraint(d, i: int, scene: Scene) -> Constraint:

@@ -111,7 +111,7 @@ def default_chunk(n: int) -> int:
     in lock-step to its slowest speed, and the chunks give progress)."""
     if jax.default_backend() != "cpu":
         return max(1, n)
-    return max(1, min(n, 32))
+    return max(1, -(-n // -(-n // 32)))  # chunks of at most 32, as even as can be (less padding)
 
 
 @dataclasses.dataclass

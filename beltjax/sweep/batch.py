@@ -28,10 +28,12 @@ class _Options:
     gyro: bool
     steps: int = 1
     track: int = 0
+    settle_s: float = 1.0
+    revolutions: int = 1
 
 def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] = ("statics", "modal"),
                  modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1,
-                 track: int = 0) -> dict[str, jax.Array]:
+                 track: int = 0, settle_s: float = 1.0, revolutions: int = 1) -> dict[str, jax.Array]:
     """Outputs of one case: ``scene`` with ``values`` {path: scalar} set (pure JAX: jit, vmap, grad).
 
     outputs, modes, gyroscopic (solve the gyroscopic problem of the moving belt) and steps
@@ -46,7 +48,12 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     with a friction coefficient), and the modes are about that state (as ``beltjax modal``).  With
     ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
     tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
-    campbell_owner (the frequencies are then the lowest ``track``, sorted).
+    campbell_owner (the frequencies are then the lowest ``track``, sorted).  ``response``: the
+    periodic steady state at the case's drive speed after ``settle_s`` s, over cycles of ``revolutions``
+    crank revolutions (:func:`beltjax.orders.cycle_revolutions`, static)
+    (:func:`beltjax.orders.steady_case`): response_arm_p2p_deg, response_span_min_N,
+    response_span_max_N, response_span_p2p_N (per span), response_hub_max_N (per bearing),
+    response_min_slip_margin (per arc with a coefficient), response_settling.
     """
     sc = parameters.set_values(scene, values)
     inst = statics.install(sc)
@@ -103,6 +110,23 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         res["campbell_hz"], res["campbell_stable"] = got[:2]
         if track:
             res["campbell_W"], res["campbell_owner"] = got[2:]
+    if "response" in outputs:
+        from beltjax.orders import SETTLE_TOL, Settings, steady_case
+        from beltjax.orders.steady import speed_path
+
+        r = steady_case(scene, values, parameters.get_value(sc, speed_path(sc)), settle_s,
+                        Settings(revolutions=revolutions))
+        if sc.tensioner is not None:
+            res["response_arm_p2p_deg"] = r["arm_angle_deg:p2p"]
+        res["response_span_min_N"] = r["span_tensions_N:min"]
+        res["response_span_max_N"] = r["span_tensions_N:max"]
+        res["response_span_p2p_N"] = r["span_tensions_N:p2p"]
+        res["response_hub_max_N"] = r["hub_force_magnitudes_N:max"]
+        if "min_slip_margin" in r:
+            res["response_min_slip_margin"] = r["min_slip_margin"]
+        res["response_settling"] = r["settling"]
+        conds += [r["solver_ok"] < 0.5, r["min_span_tension_N"] <= 0.0, ~(r["settling"] <= SETTLE_TOL)]
+        codes += [_CODE["transient_failed"], _CODE["span_slack"], _CODE["not_settled"]]
     skip = ("frequencies_hz", "campbell_hz", *sweep_modes.SHAPE_KEYS)
     finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in skip]
     conds += [~jnp.all(jnp.asarray([*finite, True])), ~stable]
@@ -111,7 +135,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     return res
 
 def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options) -> dict:
-    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track)
+    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track, opts.settle_s,
+                        opts.revolutions)
 
 def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
     """``values`` completed with the scene's value of every other scalar parameter
@@ -299,7 +324,8 @@ def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options
 
 def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] | list[str] = ("statics", "modal"),
              modes: int = 12, rpm=None, chunk: int | None = None, progress: Callable[[int, int], None] | None = None,
-             backend: str = "local", dask=None, devices="auto", reference="auto") -> dict[str, np.ndarray]:
+             backend: str = "local", dask=None, devices="auto", reference="auto",
+             settle_s: float = 1.0) -> dict[str, np.ndarray]:
     """Evaluate a batch of cases with one compiled, vmapped function (in chunks).
 
     values: {parameter path: (n,) values} (file units, e.g. from :func:`cases`);
@@ -308,7 +334,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     (the last one padded; default :func:`default_chunk`); progress: callable(done, total) after each chunk;
     backend: "local" (this process) or "dask" (chunks as tasks on a dask.distributed
     cluster; ``dask`` is a Client, a scheduler address, or None for the
-    ``BELTJAX_DASK_SCHEDULER`` address or a LocalCluster of one process per core);
+    ``BELTJAX_DASK_SCHEDULER`` address or a LocalCluster of one process per core); settle_s: the
+    response output's transient time before its recorded cycle (s);
     devices (local backend): shard each chunk over these JAX devices (``shard_map`` on
     the case axis; the chunk is a multiple of their number); "auto" uses every local
     accelerator when there are several (see :func:`_devices` for CPU devices), None none;
@@ -366,7 +393,15 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     if reference is not None and ("modal" in outputs or "campbell" in outputs):
         refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
-    opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track)
+    if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
+        from beltjax.orders import OrdersError, check, cycle_revolutions
+
+        try:
+            check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
+        except OrdersError as exc:
+            raise SweepError(str(exc), "outputs") from None
+    opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track,
+                    settle_s=float(settle_s), revolutions=cycle_revolutions(scene) if "response" in outputs else 1)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
     pre = _precheck(scene, values, n)
     invalid = pre != _CODE["ok"]

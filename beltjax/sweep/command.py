@@ -60,7 +60,8 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
         bar(done, total)
 
     result = evaluate(scene, values, spec.outputs, spec.modes, spec.rpm, chunk=spec.chunk, progress=progress,
-                      backend=backend, dask=spec.dask_scheduler, reference=refs or None)
+                      backend=backend, dask=spec.dask_scheduler, reference=refs or None,
+                      settle_s=spec.settle_s)
     wall = time.perf_counter() - t0
     devices = _devices() if backend == "local" else None
     size = _chunk_size(n, spec.chunk, 0 if spec.rpm is None else len(spec.rpm), devices,

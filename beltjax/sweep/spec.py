@@ -28,7 +28,7 @@ MAX_SPEEDS = 2000
 #: (case, speed) points per compiled batch of a campbell output (bounds memory)
 CAMPBELL_CHUNK_POINTS = 256
 
-OUTPUTS = ("statics", "modal", "campbell")
+OUTPUTS = ("statics", "modal", "campbell", "response")
 
 DISTRIBUTIONS = ("normal", "uniform")
 
@@ -37,7 +37,7 @@ SPACINGS = ("linear", "log")
 #: case status codes (index = the integer code) and their meaning
 STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched", "no_arm_balance",
           "not_converged", "span_slack", "non_finite", "supercritical", "overlap", "no_belt_path",
-          "ill_conditioned")
+          "ill_conditioned", "transient_failed", "not_settled")
 
 REASONS = {
     "ok": "solved",
@@ -54,12 +54,16 @@ REASONS = {
     "not_converged": "no static equilibrium found (Newton, also with speed stepping)",
     "span_slack": "a span would go slack (tension <= 0)",
     "non_finite": "non-finite outputs",
+    "transient_failed": "the response's transient (Dopri8) did not reach the end of its cycle",
+    "not_settled": "the response had not settled into its periodic steady state after settle_s "
+                   "(beltjax.orders.SETTLE_TOL)",
     "supercritical": "past the critical belt speed: a span's force on the pulleys (tension less rhoA c^2 lam) <= 0",
 }
 
 _CODE = {s: i for i, s in enumerate(STATUS)}
 
-_TOP_KEYS = ("description", "outputs", "modes", "rpm", "chunk", "samples", "seed", "dask_scheduler", "grid", "random")
+_TOP_KEYS = ("description", "outputs", "modes", "rpm", "settle_s", "chunk", "samples", "seed", "dask_scheduler", "grid",
+             "random")
 
 _GRID_KEYS = ("parameter", "values", "start", "stop", "num", "spacing")
 
@@ -110,6 +114,7 @@ class Spec:
     samples: int = 0
     chunk: int | None = None
     dask_scheduler: str | None = None
+    settle_s: float = 1.0
     description: str = ""
     source: str = "<dict>"
     raw: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
@@ -259,6 +264,9 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
         rpm = _rpm_range("rpm", data["rpm"])
     elif "rpm" in data:
         raise SweepError("given but \"campbell\" is not in outputs", "rpm")
+    settle_s = top.number("settle_s", required=False, default=1.0, nonnegative=True)
+    if "settle_s" in data and "response" not in outputs:
+        raise SweepError("given but \"response\" is not in outputs", "settle_s")
     chunk = top.integer("chunk", required=False, minimum=1)
     seed = top.integer("seed", required=False, default=0, minimum=0)
     sched = top.string("dask_scheduler", required=False, nonempty=True)
@@ -291,7 +299,8 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
     if "belt.static_tension" in seen and "belt.length" in seen:
         raise SweepError("belt.length and belt.static_tension cannot both be swept: the belt is given by one of them", f"{seen['belt.length']}.parameter")
     spec = Spec(outputs=outputs, modes=modes, rpm=rpm, grid=grid, random=tuple(rnd), samples=samples or 0,
-                chunk=chunk, dask_scheduler=sched, description=description, source=source, raw=dict(data))
+                chunk=chunk, dask_scheduler=sched, settle_s=settle_s, description=description, source=source,
+                raw=dict(data))
     n = spec.n_cases
     if n > MAX_CASES:
         dims = " x ".join(str(x) for x in spec.grid_shape) + (f" x {spec.samples} samples" if rnd else "")

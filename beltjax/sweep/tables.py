@@ -41,6 +41,17 @@ def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndar
                     cols[f"slip_margin_{name}"] = result["slip_margins"][:, given.index(j)]
             if given:
                 cols["min_slip_margin"] = np.min(result["slip_margins"], axis=1)
+    if "response_span_p2p_N" in result:  # the periodic steady state at the case's speed
+        if "response_arm_p2p_deg" in result:
+            cols["arm_p2p_deg"] = result["response_arm_p2p_deg"]
+        for j, name in enumerate(drive.span_names(scene)):
+            cols[f"tension_p2p_{name}_N"] = result["response_span_p2p_N"][:, j]
+            cols[f"tension_min_{name}_N"] = result["response_span_min_N"][:, j]
+        bearings = list(scene.route.order) + (["tensioner pivot"] if scene.tensioner is not None else [])
+        for j, name in enumerate(bearings):
+            cols[f"hub_max_{name.replace(' ', '_')}_N"] = result["response_hub_max_N"][:, j]
+        if "response_min_slip_margin" in result:
+            cols["dynamic_min_slip_margin"] = np.min(result["response_min_slip_margin"], axis=1)
     if "frequencies_hz" in result:
         for m in range(result["frequencies_hz"].shape[1]):
             cols[f"f{m + 1}_hz"] = result["frequencies_hz"][:, m]
