@@ -4,7 +4,7 @@ costs, batched with vmap, on the eight-pulley drive (rotational model).
 Run: ``python benchmarks/bench_orders.py`` (about 6 min on a 2-core CPU); writes
 ``benchmarks/results/orders_<backend>.json``.  ``--speeds N`` (default 100, 600-6000 rpm),
 ``--variants a,b`` (default all), ``--chunks 25,100`` (default: the default chunk, and on a CPU
-also one speed at a time for the drive as shipped).
+also one speed at a time for the drive as shipped), ``--name`` (the results file's name).
 
 Each case: the operating point, 1 s of transient from it (Dopri8, rtol 1e-7), one recorded cycle
 (128 samples) and the settling check (speeds that had not settled run again 4x longer).  Each
@@ -41,6 +41,7 @@ def main():
     ap.add_argument("--speeds", type=int, default=100)
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--chunks", default="")
+    ap.add_argument("--name", default="", help="results/<name>.json (default orders_<backend>)")
     args = ap.parse_args()
     info = _common.machine_info()
     backend = jax.default_backend()
@@ -70,7 +71,7 @@ def main():
             rows.append(row)
             print(f"{name:<24} {len(rpm):>6} {row['chunk']:>6} {first:>10.1f}s {wall:>8.1f}s "
                   f"{row['speeds_per_s']:>9.2f} {steps.min():>5}-{steps.max():<6} {flagged:>8}", flush=True)
-    out = _common.save_json(f"orders_{backend}", dict(machine=info, backend=backend, rows=rows,
+    out = _common.save_json(args.name or f"orders_{backend}", dict(machine=info, backend=backend, rows=rows,
                                                       rpm=[float(rpm[0]), float(rpm[-1])], settle_s=1.0))
     print(f"wrote {out}")
 
