@@ -65,6 +65,10 @@ EXAMPLES: dict[str, tuple[str, dict[str, str]]] = {
                                 {"simulation.png": "simulation_fead_8pulley_decoupler.png"}),
     "simulate_fead_friction": ("simulate scenes/fead_8pulley_friction.toml --t-end 1",
                                {"simulation.png": "simulation_fead_8pulley_friction.png"}),
+    "orders_fead": ("orders scenes/fead_8pulley.toml --rpm 600:6000:100",
+                    {"order_maps.png": "orders_maps_fead_8pulley.png", "envelopes.png": "orders_envelopes_fead_8pulley.png",
+                     "slip_margins.png": "orders_slip_margins_fead_8pulley.png",
+                     "hub_loci.png": "orders_hub_loci_fead_8pulley.png"}),
     "span_bench": ("span --length 0.67143 --tension 100.5 --EA 111190 --EI 0.034 --rhoA 0.12166 --elements 16",
                    {"span_modes.png": "span_modes_bench.png"}),
 }

@@ -249,6 +249,23 @@ CASES = [
          "non-monotonic time",
          lambda d: ["statics", fead_trace(d, "time_s,speed_rpm\n0.0,800\n0.02,801\n0.01,800\n0.03,799\n0.04,800\n")],
          "fluctuation[2].file", "must increase"),
+    case("scene-fluctuation-amplitude-table", "`statics`: `rpm = [800, 2000]`, `amplitude_deg = [0.5]`",
+         "a crank order's amplitude table with fewer amplitudes than speeds",
+         lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[fluctuation]]\npulley = "crank"\norder = 6.0\n'
+                                                       'rpm = [800.0, 2000.0]\namplitude_deg = [0.5, 0.2, 0.1]\n')],
+         "fluctuation[2].amplitude_deg", "one per speed"),
+    case("orders-hybrid", "`orders` of the hybrid tensioner bench", "a response over speed of the hybrid model",
+         lambda d: ["orders", TB, "--rpm", "600:800:100"], "model.fidelity", "rotational"),
+    case("orders-load-window", "`orders`: a `[[torque]]` with `t_end_s` (8-pulley drive)",
+         "a load that switches off has no steady state",
+         lambda d: ["orders", write(d, "scene.toml", FEAD + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 1.0\n'
+                                                      't_end_s = 0.5\n'), "--rpm", "600:800:100"],
+         "torque[4]", "no steady state"),
+    case("orders-zero-speed", "`orders --rpm 0:1000:500`", "a crank at rest has no excitation cycle",
+         lambda d: ["orders", write(d, "scene.toml", FEAD), "--rpm", "0:1000:500"], "rpm", "> 0"),
+    case("orders-order-beyond-samples", "`orders --max-order 100`", "orders the cycle's samples cannot resolve",
+         lambda d: ["orders", write(d, "scene.toml", FEAD), "--rpm", "600:800:100", "--max-order", "100"],
+         "max_order", "samples"),
     case("scene-decoupler-on-driven-crank", "`statics`: `[[decoupler]] pulley = \"crank\"` (8-pulley drive)",
          "a decoupler on the driven crank (its motion is prescribed)",
          lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[decoupler]]\npulley = "crank"\n'

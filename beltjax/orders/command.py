@@ -10,7 +10,7 @@ import numpy as np
 
 from beltjax import outputs
 from beltjax.orders.figures import plot_all
-from beltjax.orders.run import OrdersResult
+from beltjax.orders.run import RETRY_FACTOR, OrdersResult
 
 #: most rows of the printed table (evenly spaced speeds beyond)
 TABLE_ROWS = 40
@@ -63,9 +63,11 @@ def summary(result: OrdersResult) -> str:
     """The printed summary: speeds, flags, the worst arm motion, span swing and slip margin, a table."""
     rpm, st = result.rpm, np.asarray(result.status)
     m = result.meta
-    lines = [f"  {len(rpm)} speeds {rpm.min():.0f}-{rpm.max():.0f} rpm, {m['fidelity']} model, "
-             f"{m['revolutions_per_cycle']} crank revolution(s) per cycle; settled {m['settle_s']:g} s "
-             f"({m['rerun_speeds']} speed(s) run again {4:g}x longer); {m['wall_s']:.1f} s"]
+    revs = m["revolutions_per_cycle"]
+    lines = [f"  {len(rpm)} speeds {rpm.min():.0f}-{rpm.max():.0f} rpm, {m['fidelity']} model, a cycle of {revs} "
+             f"crank revolution{'s' if revs > 1 else ''}; settled {m['settle_s']:g} s, {m['rerun_speeds']} "
+             f"speed{'' if m['rerun_speeds'] == 1 else 's'} run again {RETRY_FACTOR:g}x longer",
+             f"  {m['wall_s']:.1f} s"]
     for s in sorted(set(st) - {"ok"}):
         lines.append(f"  {s.replace('_', ' ')}: {_where(rpm, st == s)} rpm")
     arm = result.stats.get("arm_angle_deg:p2p")
@@ -89,8 +91,9 @@ def summary(result: OrdersResult) -> str:
                 lines.append(f"  WARNING: {name} would slip at {_where(rpm, bad)} rpm (slip margin <= 0)")
     rows = np.arange(len(rpm))
     if len(rows) > TABLE_ROWS:
-        rows = np.unique(np.linspace(0, len(rpm) - 1, TABLE_ROWS).round().astype(int))
-        lines.append(f"  (every {len(rpm) / len(rows):.2g}th speed; all in orders.csv)")
+        k = -(-len(rpm) // TABLE_ROWS)
+        rows = rows[::k]
+        lines.append(f"  (every {k}{'nd' if k == 2 else 'rd' if k == 3 else 'th'} speed; all in orders.csv)")
     head = f"  {'rpm':>7}  {'status':<13} {'arm p2p deg':>11}  {'span p2p N':>10} {'span':<24} {'least margin':>12}"
     lines.append(head)
     for i in rows:

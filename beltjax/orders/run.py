@@ -17,7 +17,7 @@ import numpy as np
 
 from beltjax import drive, friction, parameters
 from beltjax.errors import BeltjaxError
-from beltjax.orders.steady import CHANNELS, Settings, cycle_revolutions, steady_case
+from beltjax.orders.steady import CHANNELS, SOLVERS, Settings, cycle_revolutions, steady_case
 from beltjax.scene import Scene
 from beltjax.transient_outputs import _columns
 
@@ -29,7 +29,8 @@ RETRY_FACTOR = 4.0
 MAX_SPEEDS = 2000
 #: samples per excitation cycle accepted
 MIN_SAMPLES, MAX_SAMPLES = 16, 4096
-#: the status of a speed, worst first
+#: the status of a speed, worst first (span_slack: a span's force on the pulleys, its tension less
+#: rhoA c^2 lam with transport, fell to 0 or below in the cycle: the belt lifts off, no grip)
 STATUS = ("not_converged", "solver_failed", "supercritical", "span_slack", "not_settled", "ok")
 
 
@@ -149,7 +150,7 @@ def _status(out: dict, settle_tol: float) -> list[str]:
         not_converged=out["converged"] < 0.5,
         solver_failed=out["solver_ok"] < 0.5,
         supercritical=out["supercritical"] > 0.5,
-        span_slack=out["min_span_tension_N"] <= 0.0,
+        span_slack=out["min_span_force_N"] <= 0.0,
         not_settled=~(out["settling"] <= settle_tol),
     )
     res = []
@@ -184,6 +185,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         parameters.check_value(k, val)
     settings = settings or Settings()
     settings = dataclasses.replace(settings, revolutions=cycle_revolutions(scene))
+    if settings.solver not in SOLVERS:
+        raise OrdersError(f"solver: {settings.solver!r}; choose one of {', '.join(SOLVERS)}", "solver")
     if not MIN_SAMPLES <= settings.samples <= MAX_SAMPLES:
         raise OrdersError(f"samples: {settings.samples} samples per cycle; give {MIN_SAMPLES} to {MAX_SAMPLES}", "samples")
     need = 2 * settings.max_order * settings.revolutions + 2
@@ -235,7 +238,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     meta = dict(
         fidelity=scene.model.fidelity, drive_pulley=order[drive.drive_pulley(scene)], settle_s=settle_s,
         settle_tol=settle_tol, rerun_speeds=int(retry.size), revolutions_per_cycle=settings.revolutions,
-        samples_per_cycle=settings.samples, rtol=settings.rtol, atol=settings.atol, solver="dopri8",
+        samples_per_cycle=settings.samples, rtol=settings.rtol, atol=settings.atol, solver=settings.solver,
         steps=out["steps"].astype(int).tolist(), t_end_s=out["t_end_s"].tolist(), wall_s=wall, chunk=size,
         values={k: float(v) for k, v in values.items()},
     )

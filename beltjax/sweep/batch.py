@@ -125,7 +125,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         if "min_slip_margin" in r:
             res["response_min_slip_margin"] = r["min_slip_margin"]
         res["response_settling"] = r["settling"]
-        conds += [r["solver_ok"] < 0.5, r["min_span_tension_N"] <= 0.0, ~(r["settling"] <= SETTLE_TOL)]
+        conds += [r["solver_ok"] < 0.5, r["min_span_force_N"] <= 0.0, ~(r["settling"] <= SETTLE_TOL)]
         codes += [_CODE["transient_failed"], _CODE["span_slack"], _CODE["not_settled"]]
     skip = ("frequencies_hz", "campbell_hz", *sweep_modes.SHAPE_KEYS)
     finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in skip]
