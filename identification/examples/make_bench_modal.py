@@ -8,10 +8,11 @@ Not synthesised: the frequencies are the bench measurements printed in the thesi
   the unstretched belt length of each configuration (the installation tension was set by
   moving the alternator, so each configuration has its own effective length).
 * ``tensioner_modal/``: the tensioner bench at spring preload stage 2 (Table 7.9, "experiment"
-  column, its 13 transverse modes in the three spans).  Fitted: the unstretched belt length and
-  the spring preload angle, i.e. the belt's effective length on this bench and the spring
-  moment that holds it; the arm angle and the tension then follow.  The two rotational modes
-  are left out: both move the arm, whose centre of mass (the thesis' x_cm1) is not printed.
+  column: its 13 transverse modes in the three spans and its two rotational modes).  Fitted: the
+  unstretched belt length and the spring preload angle, i.e. the belt's effective length on
+  this bench and the spring moment that holds it (the arm angle and the tension then follow),
+  and the distance of the arm's centre of mass from the pivot (the thesis' x_cm1, not printed),
+  which the rotational modes see through the arm's inertia about the pivot.
 
 Each dataset folder holds copies of the scenes it fits (a dataset names only files inside its own
 folder); tests/test_identification_modal.py checks that they equal the files in ``scenes/``.
@@ -79,12 +80,12 @@ def _tensioner(ref) -> None:
     out.mkdir(exist_ok=True)
     lines = [
         "# Modal fit of the thesis' tensioner bench, spring preload stage 2: the measured transverse",
-        "# frequencies of Table 7.9 (written by make_bench_modal.py from",
+        "# and rotational frequencies of Table 7.9 (written by make_bench_modal.py from",
         "# ../shared/reference/thesis_reference.json; measured on the bench, not synthesised).",
-        "# The rotational modes are left out: they move the arm, whose centre of mass is not printed.",
+        "# The rotational modes move the arm: they identify its centre of mass (not printed).",
         "#   beltjax fit identification/examples/tensioner_modal/dataset.toml",
         "[modal]",
-        'parameters = ["belt.length", "tensioner.spring_preload_deg"]',
+        'parameters = ["belt.length", "tensioner.spring_preload_deg", "tensioner.arm_cm_distance"]',
         "",
         "[[modal.configuration]]",
         'name = "stage2"',
@@ -93,9 +94,10 @@ def _tensioner(ref) -> None:
     ]
     for _, _, f_exp, shape in stage2["modal"]["modes"]:
         label, _, span = shape.partition(" (")
-        if f_exp is None or "transverse" not in label:
+        if f_exp is None or not ("transverse" in label or "rotational" in label):
             continue
-        lines.append(_mode_line(label, f_exp, _SPANS[span.rstrip(")")]))
+        where = _SPANS[span.rstrip(")")] if "transverse" in label else None  # a rotational mode: no span
+        lines.append(_mode_line(label, f_exp, where))
     lines += ["]", ""]
     (out / "dataset.toml").write_text("\n".join(lines))
     print(f"wrote {out / 'dataset.toml'}")
