@@ -215,8 +215,9 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool) -> S
     if scene.decouplers:  # each decoupler's wind-up (the pulley's lead over its rotor) and moment
         phis, _ = drive.angles_and_arm(jnp.asarray(res.qi), scene, inst)
         psi = drive.rotor_angles(jnp.asarray(res.qi), scene)
-        for j, (d, i) in enumerate(zip(scene.decouplers, couplings.rotor_routes(scene))):
-            w = scene.route.senses[i] * (float(phis[i]) - float(psi[j]))
+        w_all = couplings.windups(phis, psi, scene)
+        for j, d in enumerate(scene.decouplers):
+            w = float(w_all[j])
             res.decouplers[d.pulley] = {"windup_deg": math.degrees(w),
                                         "moment_Nm": float(couplings.decoupler_moment(w, d.stiffness))}
     return res

@@ -81,11 +81,8 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     if scene.decouplers:  # the rotors' speeds and the decoupler springs' moments
         rows = n + jnp.arange(len(scene.decouplers))
         out["rotor_speeds_rpm"] = Bd[rows, 2] * 60.0 / (2 * jnp.pi)
-        routes = list(couplings.rotor_routes(scene))
-        senses = jnp.asarray([scene.route.senses[i] for i in routes], dtype=B.dtype)
         stiff = jnp.stack([d.stiffness for d in scene.decouplers])
-        out["decoupler_moments_Nm"] = couplings.decoupler_moment(senses * (B[jnp.asarray(routes), 2] - B[rows, 2]),
-                                                                 stiff)
+        out["decoupler_moments_Nm"] = couplings.decoupler_moment(couplings.windups(B[:n, 2], B[rows, 2], scene), stiff)
     nodes = output_nodes(scene)
     if nodes:
         disp = []

@@ -42,31 +42,42 @@ def decoupler_moment(windup, stiffness):
     return jnp.where(windup >= 0.0, stiffness * windup, 0.0)
 
 
+def windups(pulley_angles, rotor_angles, scene: Scene):
+    """Each decoupler's wind-up (rad): its pulley's lead over its rotor in the belt's direction of
+    travel, s (phi_pulley - psi_rotor), from the route entries' angles (n,) and the rotors' (k,)
+    (rad; or their rates, rad/s, for the wind-up's rate).  Shape (k,), ``scene.decouplers`` order."""
+    routes = jnp.asarray(rotor_routes(scene), dtype=int)
+    senses = jnp.asarray([float(scene.route.senses[i]) for i in rotor_routes(scene)])
+    return senses * (pulley_angles[routes] - rotor_angles)
+
+
+def _apply(f, moments, scene: Scene):
+    """``f`` plus each decoupler's moment M (k,) (N m): -s M on its pulley, +s M on its rotor."""
+    n = len(scene.route.order)
+    for j, i in enumerate(rotor_routes(scene)):
+        s = float(scene.route.senses[i])
+        f = f.at[i, 2].add(-s * moments[j]).at[n + j, 2].add(s * moments[j])
+    return f
+
+
 def body_forces(f, bodies, scene: Scene):
     """``f`` (nb, 3; N, N m) plus the decouplers' moments on their pulleys and rotors; bodies
     (nb, 3): the bodies' (x, y, angle), the rotors right after the route entries."""
     if not scene.decouplers:
         return f
     n = len(scene.route.order)
-    senses = scene.route.senses
-    for j, (d, i) in enumerate(zip(scene.decouplers, rotor_routes(scene))):
-        s = float(senses[i])
-        M = decoupler_moment(s * (bodies[i, 2] - bodies[n + j, 2]), d.stiffness)
-        f = f.at[i, 2].add(-s * M).at[n + j, 2].add(s * M)
-    return f
+    w = windups(bodies[:n, 2], bodies[n : n + len(scene.decouplers), 2], scene)
+    return _apply(f, decoupler_moment(w, jnp.stack([d.stiffness for d in scene.decouplers])), scene)
 
 
 def damping_forces(f, bodies, bodies_dot, scene: Scene):
     """``f`` plus the decouplers' viscous moments (transients): c times the rate of wind-up while
     the clutch is engaged (w >= 0), nothing while it overruns (N m)."""
-    n = len(scene.route.order)
-    senses = scene.route.senses
-    for j, (d, i) in enumerate(zip(scene.decouplers, rotor_routes(scene))):
-        s = float(senses[i])
-        w = s * (bodies[i, 2] - bodies[n + j, 2])
-        M = jnp.where(w >= 0.0, d.damping * s * (bodies_dot[i, 2] - bodies_dot[n + j, 2]), 0.0)
-        f = f.at[i, 2].add(-s * M).at[n + j, 2].add(s * M)
-    return f
+    n, k = len(scene.route.order), len(scene.decouplers)
+    w = windups(bodies[:n, 2], bodies[n : n + k, 2], scene)
+    rate = windups(bodies_dot[:n, 2], bodies_dot[n : n + k, 2], scene)
+    c = jnp.stack([d.damping for d in scene.decouplers])
+    return _apply(f, jnp.where(w >= 0.0, c * rate, 0.0), scene)
 
 
 def load_body(scene: Scene, name: str) -> int | None:

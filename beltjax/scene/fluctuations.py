@@ -40,6 +40,7 @@ import os
 import numpy as np
 
 from beltjax import schema, textfile
+from beltjax.scene.sections import _arr
 from beltjax.scene.spec import Fluctuation
 
 KEYS = ("pulley", "order", "frequency_hz", "amplitude_deg", "rpm", "phase_deg", "file", "harmonics")
@@ -112,12 +113,6 @@ def _amplitude(t, num):
     if any(b <= a for a, b in zip(speeds, speeds[1:])):
         t.fail("rpm", "the speeds must increase")
     return _arr(amps), _arr(speeds)
-
-
-def _arr(x):
-    import jax.numpy as jnp
-
-    return jnp.asarray(x, dtype=jnp.float64)
 
 
 def _trace(t, pulley: str, path: str, harmonics: int, rpm: float, key: str) -> list[Fluctuation]:
