@@ -27,9 +27,10 @@ Sweep file (TOML)
 ::
 
     description = "two-pulley bench: tension x EI"   # optional
-    outputs = ["statics", "modal"]    # any of "statics", "modal", "campbell" (default statics, modal)
+    outputs = ["statics", "modal"]    # any of "statics", "modal", "campbell", "response" (default statics, modal)
     modes = 12                        # modes kept per case (default 12; rigid-body modes count)
     # rpm = [0, 2500, 50]             # campbell only: drive-pulley speeds A, B, STEP (rpm, B included)
+    # settle_s = 1.0                  # response only: transient before the recorded cycle (s, default 1)
     # chunk = 1                       # cases per compiled batch (default 1 per CPU device; on GPUs from memory and size)
     # samples = 200                   # random samples (or in each [[random]] table; all must agree)
     # seed = 0                        # default seed of the [[random]] tables
@@ -98,6 +99,14 @@ campbell
     the same modes' frequencies at each ``rpm`` speed per case: matched to the nominal's
     at the lowest speed, then followed along the case's speeds by their shapes (as
     ``beltjax campbell``); ``campbell_mode_match`` is a case's lowest MAC.
+response
+    the periodic steady state at the case's drive-pulley speed under the scene's crank orders
+    and lasting loads (:func:`beltjax.orders.steady_case`; the scene must have one:
+    :func:`beltjax.orders.check`): ``arm_p2p_deg``, ``tension_p2p_<span>_N``,
+    ``tension_min_<span>_N``, ``hub_max_<bearing>_N``, ``dynamic_min_slip_margin``; statuses
+    ``transient_failed``, ``span_slack`` (a span's force on the pulleys <= 0 in the cycle) and
+    ``not_settled`` (still changing after ``settle_s``).  For Monte-Carlo tolerance studies of
+    belt length, tensioner friction or accessory inertias.
 
 A case without an admissible state is never silently wrong: its outputs are NaN
 and its ``status`` names the cause (:data:`STATUS`): before any computation, the
