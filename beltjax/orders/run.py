@@ -56,7 +56,7 @@ def check(scene: Scene, rpm) -> None:
                           "steps); give fidelity = \"rotational\", or run the hybrid model's transient with "
                           "beltjax simulate at chosen speeds", "model.fidelity")
     d = scene.route.order[drive.drive_pulley(scene)]
-    if drive.is_free(scene)[drive.drive_pulley(scene)]:
+    if not scene.pulley(d).driven:  # (an isolated crank's rim is free, its hub driven)
         raise OrdersError(f"pulley {d!r}: a response over speed needs a driven drive pulley (driven = true): "
                           "its speed_rpm is what the response runs over", f"pulley.{d}.driven")
     p = scene.pulley(d)
