@@ -278,8 +278,7 @@ CASES = [
          "isolator.pulley", "not the driven drive pulley"),
     case("scene-tensioner-cm-beyond-arm", "`statics`: `arm_cm_distance = 0.2` (arm 0.094 m)",
          "centre of mass beyond the arm",
-         lambda d: ["statics", bench(d, ("pulley_inertia = 0.1806e-3", "pulley_inertia = 0.1806e-3\n"
-                                                                       "arm_cm_distance = 0.2"))],
+         lambda d: ["statics", bench(d, ("arm_cm_distance = 0.0633", "arm_cm_distance = 0.2"))],
          "tensioner.arm_cm_distance: must not exceed arm_length"),
     case("scene-tensioner-table-missing", "`statics`: `\"tensioner\"` in the route, no `[tensioner]`",
          "missing table",
