@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, excitation, signals, statics
+from beltjax.drive import couplings
 from beltjax.span_flags import run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
@@ -111,19 +112,6 @@ def _straighten(qi_new, qi_old, scene: Scene, inst) -> jax.Array:
     return qi_new.at[drive.n_rigid(scene):].add(spans.straight_shift(d0, d1, Lspan))
 
 
-def isolator_wind_up(scene: Scene, inst, qi, drive_torque):
-    """q_i (m, rad) of the steady state ``qi`` with an isolated crank's rim lagging its hub by the drive
-    torque (N m) over the isolator's stiffness: the belt loop turned by that lag (pure JAX; ``qi``
-    unchanged without an isolator)."""
-    if scene.isolator is None:
-        return qi
-    from beltjax import drive_modal
-
-    d = drive.drive_pulley(scene)
-    lag = -drive_torque / scene.isolator.stiffness  # rad
-    return qi + drive_modal.rigid_mode(scene, inst) * (scene.route.senses[d] * inst.radii[d] * lag)
-
-
 def initial_state(scene: Scene):
     """(installation, q_i(0), q_i'(0)): the steady state at the initial belt speed with the
     ``[initial]`` changes (added pulley rotations, arm angle); spans straight between their
@@ -142,7 +130,7 @@ def initial_state(scene: Scene):
     st = statics.analyse_statics(bare, speed=float(drive.belt_speed(scene)), allow_supercritical=True,
                                  with_unloaded=False)
     inst = st.inst
-    qi0 = isolator_wind_up(scene, inst, jnp.asarray(st.qi), st.drive_torque_Nm)
+    qi0 = couplings.isolator_wind_up(scene, inst, jnp.asarray(st.qi), st.drive_torque_Nm)
     ini = scene.initial
     if ini.rotation_deg or ini.arm_angle_deg is not None:
         idx = _rigid_index(scene)

@@ -119,3 +119,16 @@ def isolator_forces(f, bodies, bodies_dot, scene: Scene, t=None):
     i = scene.route.order.index(scene.isolator.pulley)
     rate = None if bodies_dot is None else bodies_dot[i, 2]
     return f.at[i, 2].add(isolator_moment(scene, bodies[i, 2], rate, t))
+
+
+def isolator_wind_up(scene: Scene, inst, qi, drive_torque):
+    """q_i (m, rad) of the steady state ``qi`` with an isolated crank's rim lagging its hub by the drive
+    torque (N m) over the isolator's stiffness: the belt loop turned by that lag (pure JAX; ``qi``
+    unchanged without an isolator)."""
+    if scene.isolator is None:
+        return qi
+    from beltjax import drive_modal
+
+    d = scene.route.order.index(scene.isolator.pulley)  # the driven drive pulley
+    lag = -drive_torque / scene.isolator.stiffness  # rad
+    return qi + drive_modal.rigid_mode(scene, inst) * (scene.route.senses[d] * inst.radii[d] * lag)

@@ -65,8 +65,8 @@ class Objective:
     modes ("span", "all" or a number of lowest flexible modes), margin_hz (Hz), tolerance_hz
     (Hz: the shift still needed that counts as clear), speeds (samples in the band); hub_load:
     pulley (a route entry); arm_motion: rpm, speeds, settle_s (s: the transient before the
-    periodic steady state, :mod:`beltjax.orders`), revolutions (crank revolutions per excitation
-    cycle, the scene's: :func:`beltjax.orders.cycle_revolutions`).  weight >= 0."""
+    periodic steady state, :mod:`beltjax.orders`), response (its settings: the scene's cycle and
+    excited orders, :func:`beltjax.orders.for_scene`).  weight >= 0."""
 
     kind: str
     weight: float = 1.0
@@ -78,7 +78,7 @@ class Objective:
     speeds: int = 9
     pulley: str = ""
     settle_s: float = 1.0
-    revolutions: int = 1
+    response: object = None  # arm_motion: the scene's beltjax.orders.Settings (static)
 
 
 @dataclass(frozen=True)
@@ -213,7 +213,7 @@ def _band_rpm(t, d) -> list:
 def _arm_motion(t, d, scene: Scene, weight: float) -> Objective:
     """An arm_motion objective: the tensioner arm's largest peak-to-peak (deg) in the periodic
     steady state over a speed band (the scene must have one: :func:`beltjax.orders.check`)."""
-    from beltjax.orders import OrdersError, check, cycle_revolutions
+    from beltjax.orders import OrdersError, Settings, check, for_scene
 
     rpm = _band_rpm(t, d)
     if rpm[0] <= 0:
@@ -227,7 +227,7 @@ def _arm_motion(t, d, scene: Scene, weight: float) -> Objective:
     return Objective("arm_motion", weight, rpm=(float(rpm[0]), float(rpm[1])),
                      speeds=t.integer("speeds", required=False, default=5, minimum=1, maximum=64),
                      settle_s=t.number("settle_s", required=False, default=1.0, nonnegative=True),
-                     revolutions=cycle_revolutions(scene))
+                     response=for_scene(scene, Settings(samples=64, max_order=4.0)))
 
 
 def _parse_constraint(d, i: int, scene: Scene) -> Constraint:

@@ -3,7 +3,7 @@ speed, batched and differentiable (:mod:`beltjax.orders.steady`, :mod:`beltjax.o
 
 from beltjax.orders.run import (MAX_SPEEDS, SETTLE_TOL, STATUS, OrdersError, OrdersResult, check,
                                 over_speed, response_over_speed)
-from beltjax.orders.steady import CHANNELS, Settings, cycle_revolutions, steady_case
+from beltjax.orders.steady import CHANNELS, Settings, cycle_revolutions, for_scene, steady_case
 
 __all__ = ["CHANNELS", "MAX_SPEEDS", "SETTLE_TOL", "STATUS", "OrdersError", "OrdersResult", "Settings", "check",
-           "cycle_revolutions", "over_speed", "response_over_speed", "steady_case"]
+           "cycle_revolutions", "for_scene", "over_speed", "response_over_speed", "steady_case"]

@@ -17,7 +17,7 @@ import numpy as np
 
 from beltjax import drive, friction, parameters
 from beltjax.errors import BeltjaxError
-from beltjax.orders.steady import CHANNELS, SOLVERS, Settings, cycle_revolutions, steady_case
+from beltjax.orders.steady import CHANNELS, SOLVERS, Settings, cycle_revolutions, for_scene, steady_case
 from beltjax.scene import Scene
 from beltjax.transient_outputs import _columns
 
@@ -92,7 +92,7 @@ def over_speed(scene: Scene, values: dict, rpm, settle_s, settings: Settings) ->
     """:func:`~beltjax.orders.steady.steady_case` at every speed of ``rpm`` (S,) (rev/min), as one
     pure, vmapped function of the parameter ``values`` {path: value}: differentiable (``jax.grad``)
     for losses over speed, e.g. the largest arm motion over an idle band.  ``settings.revolutions``
-    must be :func:`~beltjax.orders.steady.cycle_revolutions` of the scene (see
+    and ``settings.top_order`` must be the scene's (:func:`~beltjax.orders.steady.for_scene`; see
     :func:`response_over_speed` for the checked, chunked entry point)."""
     return jax.vmap(lambda r: steady_case(scene, values, r, settle_s, settings))(jnp.asarray(rpm))
 
@@ -183,8 +183,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     for k, val in values.items():
         parameters.check(scene, k)
         parameters.check_value(k, val)
-    settings = settings or Settings()
-    settings = dataclasses.replace(settings, revolutions=cycle_revolutions(scene))
+    settings = for_scene(scene, settings)
     if settings.solver not in SOLVERS:
         raise OrdersError(f"solver: {settings.solver!r}; choose one of {', '.join(SOLVERS)}", "solver")
     if not MIN_SAMPLES <= settings.samples <= MAX_SAMPLES:

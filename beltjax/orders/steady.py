@@ -27,8 +27,10 @@ import jax
 import jax.numpy as jnp
 
 from beltjax import critical, drive, friction, parameters, statics
+from beltjax.excitation import ADAPTIVE_PERIOD_FRACTION
 from beltjax.scene import Scene
-from beltjax.transient import isolator_wind_up, vector_field
+from beltjax.drive.couplings import isolator_wind_up
+from beltjax.transient import vector_field
 from beltjax.transient_outputs import _outputs_one
 
 #: the channels reduced over the cycle (those a scene has), with their units
@@ -57,7 +59,10 @@ class Settings:
 
     samples: output samples per excitation cycle; max_order: highest crank order reported;
     rtol, atol: the adaptive step's tolerances; max_steps: most steps of one case's transient;
-    revolutions: crank revolutions per excitation cycle (:func:`cycle_revolutions`); solver: one of
+    revolutions: crank revolutions per excitation cycle (:func:`cycle_revolutions`); top_order:
+    the highest crank order of the excitation (the largest step is a quarter of its period, as
+    :data:`beltjax.excitation.ADAPTIVE_PERIOD_FRACTION` in transients); both from the scene by
+    :func:`for_scene`; solver: one of
     :data:`SOLVERS` (the explicit Dopri8 by default: on the eight-pulley drive with a decoupler the
     implicit Kvaerno5 took 1.5-3.4x the steps at the same tolerances, and 7x the time)."""
 
@@ -68,6 +73,7 @@ class Settings:
     max_steps: int = 1_000_000
     revolutions: int = 1
     solver: str = "dopri8"
+    top_order: float = 8.0
 
     @property
     def harmonics(self) -> int:
@@ -90,6 +96,13 @@ def cycle_revolutions(scene: Scene) -> int:
             q = Fraction(float(f.rate)).limit_denominator(MAX_REVOLUTIONS)
             n = n * q.denominator // math.gcd(n, q.denominator)
     return n
+
+
+def for_scene(scene: Scene, settings: Settings | None = None) -> Settings:
+    """``settings`` (default :class:`Settings`) with the scene's cycle (:func:`cycle_revolutions`)
+    and its highest excited crank order (at least 1): static, read from the scene's values."""
+    top = max([1.0] + [float(f.rate) for f in scene.fluctuations if f.per == "rev"])
+    return dataclasses.replace(settings or Settings(), revolutions=cycle_revolutions(scene), top_order=top)
 
 
 def speed_path(scene: Scene) -> str:
@@ -151,7 +164,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -
     phase = period * jnp.arange(K + 1) / K
     ts = jnp.concatenate([t_early + phase, t_late + phase])
     term = diffrax.ODETerm(vector_field(sc, inst))
-    ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=period / 8)
+    dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
+    ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
     solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
     sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=ts[-1], dt0=jnp.minimum(1e-4, period / 64), y0=y0,
                               saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,

@@ -29,11 +29,11 @@ class _Options:
     steps: int = 1
     track: int = 0
     settle_s: float = 1.0
-    revolutions: int = 1
+    response: Any = None  # the response's beltjax.orders.Settings (static)
 
 def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] = ("statics", "modal"),
                  modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1,
-                 track: int = 0, settle_s: float = 1.0, revolutions: int = 1) -> dict[str, jax.Array]:
+                 track: int = 0, settle_s: float = 1.0, response=None) -> dict[str, jax.Array]:
     """Outputs of one case: ``scene`` with ``values`` {path: scalar} set (pure JAX: jit, vmap, grad).
 
     outputs, modes, gyroscopic (solve the gyroscopic problem of the moving belt) and steps
@@ -49,8 +49,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
     tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
     campbell_owner (the frequencies are then the lowest ``track``, sorted).  ``response``: the
-    periodic steady state at the case's drive speed after ``settle_s`` s, over cycles of ``revolutions``
-    crank revolutions (:func:`beltjax.orders.cycle_revolutions`, static)
+    periodic steady state at the case's drive speed after ``settle_s`` s, with the static
+    :class:`beltjax.orders.Settings` ``response`` (default: :func:`beltjax.orders.for_scene`)
     (:func:`beltjax.orders.steady_case`): response_arm_p2p_deg, response_span_min_N,
     response_span_max_N, response_span_p2p_N (per span), response_hub_max_N (per bearing),
     response_min_slip_margin (per arc with a coefficient), response_settling.
@@ -111,11 +111,11 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         if track:
             res["campbell_W"], res["campbell_owner"] = got[2:]
     if "response" in outputs:
-        from beltjax.orders import SETTLE_TOL, Settings, steady_case
+        from beltjax.orders import SETTLE_TOL, for_scene, steady_case
         from beltjax.orders.steady import speed_path
 
         r = steady_case(scene, values, parameters.get_value(sc, speed_path(sc)), settle_s,
-                        Settings(revolutions=revolutions))
+                        response if response is not None else for_scene(scene))
         if sc.tensioner is not None:
             res["response_arm_p2p_deg"] = r["arm_angle_deg:p2p"]
         res["response_span_min_N"] = r["span_tensions_N:min"]
@@ -136,7 +136,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
 
 def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options) -> dict:
     return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track, opts.settle_s,
-                        opts.revolutions)
+                        opts.response)
 
 def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
     """``values`` completed with the scene's value of every other scalar parameter
@@ -394,14 +394,14 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
-        from beltjax.orders import OrdersError, check, cycle_revolutions
+        from beltjax.orders import OrdersError, check, for_scene
 
         try:
             check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
         except OrdersError as exc:
             raise SweepError(str(exc), "outputs") from None
     opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track,
-                    settle_s=float(settle_s), revolutions=cycle_revolutions(scene) if "response" in outputs else 1)
+                    settle_s=float(settle_s), response=for_scene(scene) if "response" in outputs else None)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
     pre = _precheck(scene, values, n)
     invalid = pre != _CODE["ok"]
