@@ -125,6 +125,7 @@ def test_command_writes_its_files(tmp_path, capsys):
     (lambda t: t.replace("mean_Nm = 5.0", "mean_Nm = 5.0\namplitude_Nm = 1.0\nfrequency_hz = 10.0"),
      "torque[0].amplitude_Nm"),
     (lambda t: t.replace("order = 2.0", "frequency_hz = 20.0"), "fluctuation[0]"),
+    (lambda t: t.replace("order = 2.0", "order = 2.05"), "fluctuation[0]"),  # no cycle of <= 8 revolutions
     (lambda t: t.replace("speed_rpm = 600.0", "speed_rpm = 600.0\nacceleration_rpm_per_s = 100.0"),
      "pulley.crank.acceleration_rpm_per_s"),
 ])

@@ -17,9 +17,10 @@ import numpy as np
 
 from beltjax import drive, friction, parameters
 from beltjax.errors import BeltjaxError
-from beltjax.orders.steady import CHANNELS, SOLVERS, Settings, cycle_revolutions, for_scene, steady_case
+from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, SOLVERS, Settings, cycle_revolutions, for_scene,
+                                   steady_case)
 from beltjax.scene import Scene
-from beltjax.transient_outputs import _columns
+from beltjax.transient_outputs import UNITS, _columns
 
 #: settling residual (-) above which a speed counts as not settled (:func:`steady_case`)
 SETTLE_TOL = 1e-2
@@ -72,10 +73,12 @@ def check(scene: Scene, rpm) -> None:
             what = "a crank trace against time" if f.file else "a frequency in Hz"
             raise OrdersError(f"{key}: {what} does not follow the speed; give orders (order = ...) or a trace against "
                               "crank angle for a response over speed", key)
-    if cycle_revolutions(scene) > 1 and any(
-            abs(float(f.rate) * cycle_revolutions(scene) - round(float(f.rate) * cycle_revolutions(scene))) > 1e-9
-            for f in scene.fluctuations):
-        raise OrdersError("fluctuation: the orders repeat over no cycle of at most 8 crank revolutions", "fluctuation")
+    n = cycle_revolutions(scene)  # every order, whole cycles or not, must repeat over it
+    for i, f in enumerate(scene.fluctuations):
+        if abs(float(f.rate) * n - round(float(f.rate) * n)) > 1e-9:
+            key = f.key or f"fluctuation[{i}]"
+            raise OrdersError(f"{key}: order {float(f.rate):g} repeats over no cycle of at most {MAX_REVOLUTIONS} crank "
+                              "revolutions (give orders in steps of 1/2, 1/3, ... 1/8)", key)
     for i, load in enumerate(scene.torques):
         if load.t_end_s is not None or float(load.t_start_s) > 0.0:
             raise OrdersError(f"torque[{i}]: a load that switches on or off has no steady state; leave out t_start_s "
@@ -232,7 +235,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     columns["hub_forces_N"] = cols["hub_forces_N"]
     stats = {k: v for k, v in out.items() if ":" in k or k in ("min_slip_margin", "max_friction_needed",
                                                                "hub_forces_N", "t_s")}
-    units = {k: u for k, u in CHANNELS.items() if k in columns}
+    units = {k: UNITS[k] for k in CHANNELS if k in columns}
     units.update(min_slip_margin="-", max_friction_needed="-", hub_forces_N="N")
     meta = dict(
         fidelity=scene.model.fidelity, drive_pulley=order[drive.drive_pulley(scene)], settle_s=settle_s,

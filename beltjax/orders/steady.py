@@ -33,18 +33,9 @@ from beltjax.drive.couplings import isolator_wind_up
 from beltjax.transient import vector_field
 from beltjax.transient_outputs import _outputs_one
 
-#: the channels reduced over the cycle (those a scene has), with their units
-CHANNELS = dict(
-    arm_angle_deg="deg",
-    span_tensions_N="N",
-    hub_force_magnitudes_N="N",
-    pulley_speeds_rpm="rpm",
-    drive_torques_Nm="N m",
-    spring_moment_Nm="N m",
-    isolator_moment_Nm="N m",
-    rotor_speeds_rpm="rpm",
-    decoupler_moments_Nm="N m",
-)
+#: the transient channels reduced over the cycle (those a scene has; units: transient_outputs.UNITS)
+CHANNELS = ("arm_angle_deg", "span_tensions_N", "hub_force_magnitudes_N", "pulley_speeds_rpm", "drive_torques_Nm",
+            "spring_moment_Nm", "isolator_moment_Nm", "rotor_speeds_rpm", "decoupler_moments_Nm")
 #: the statistics of each channel over the recorded cycle
 STATS = ("mean", "min", "max", "p2p")
 #: the adaptive solvers a steady state may use
