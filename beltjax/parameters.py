@@ -43,7 +43,8 @@ from beltjax.drive.effects import effects_of
 
 _COMPONENTS = {"x": 0, "y": 1}
 _VECTORS = {"pulley": ("center", "cm_offset"), "tensioner": ("pivot",)}
-_BELT = ("EA", "EI", "rhoA", "CA", "static_tension", "length", "friction_coefficient", "groove_angle_deg")
+_BELT = ("EA", "EI", "rhoA", "CA", "static_tension", "length", "friction_coefficient", "groove_angle_deg",
+         "slip_speed")
 _PULLEY = ("radius", "mass", "inertia", "speed_rpm", "acceleration_rpm_per_s",
            "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "bearing_damping", "friction_coefficient")
 #: keys a scene may leave out (no value to sweep or fit unless given)

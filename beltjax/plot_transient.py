@@ -27,6 +27,8 @@ _SIM_CHANNELS = {
     "drive_torques_Nm": ("drive torque", "N m", 1.0, None),
     "node_displacements_m": ("node displacement", "m", 1e3, "mm"),
     "slip_margins": ("slip margin (capstan law)", "-", 1.0, None),
+    "slip_speeds_m_s": ("gross slip speed", "m/s", 1.0, None),
+    "friction_power_W": ("belt friction power", "W", 1.0, None),
 }
 _SPECTRUM_CHANNELS = ("hub_forces_N", "span_tensions_N", "node_displacements_m")
 _MAX_POINTS = 20000

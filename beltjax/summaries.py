@@ -163,6 +163,9 @@ def campbell_summary(c, n_rows: int = 12) -> str:
     return "\n".join(lines)
 
 
+_STEMS = {"slip_margins": "slip margin", "slip_speeds_m_s": "gross slip speed", "creep_speeds_m_s": "creep speed"}
+
+
 def simulation_table(res, summary) -> str:
     """Mean, peak-to-peak and dominant frequencies of the main channels of a simulation."""
     m = res.meta
@@ -170,11 +173,12 @@ def simulation_table(res, summary) -> str:
     rows = []
     for name in ("span_tensions_N", "span_forces_N", "hub_force_magnitudes_N", "pulley_speeds_rpm",
                  "rotor_speeds_rpm", "decoupler_moments_Nm", "isolator_moment_Nm", "arm_angle_deg",
-                 "spring_moment_Nm", "drive_torques_Nm", "node_displacements_m", "slip_margins"):
+                 "spring_moment_Nm", "drive_torques_Nm", "node_displacements_m", "slip_margins", "slip_speeds_m_s",
+                 "creep_speeds_m_s", "friction_power_W"):
         if name not in summary["channels"]:
             continue
         for col, st in summary["channels"][name].items():
-            stem = "slip margin" if name == "slip_margins" else name.rsplit('_', 1)[0].replace('_', ' ')
+            stem = _STEMS.get(name) or name.rsplit('_', 1)[0].replace('_', ' ')
             label = f"{stem}: {col}" if col != name else name
             dom = ", ".join(f"{f:.4g}" for f in st["dominant_hz"]) or "-"
             rows.append((" ".join(label.split()), st, dom, units[name]))

@@ -45,7 +45,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, excitation, signals, statics
-from beltjax.drive import couplings
+from beltjax.drive import belt_slip, couplings
+from beltjax.drive.belt_slip import split_state
 from beltjax.span_flags import run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
@@ -147,16 +148,24 @@ def initial_state(scene: Scene):
 
 
 def vector_field(scene: Scene, inst):
-    """f(t, y, args) of y = (q_i, q_i') for diffrax.ODETerm (m, rad, m/s, rad/s per s)."""
+    """f(t, y, args) of y = (q_i, q_i', slip states) for diffrax.ODETerm (m, rad, m/s, rad/s per
+    s; the slip states only with ``belt_slip``: :func:`split_state`)."""
     rm = drive.reduced_mass(scene, inst)  # the constant span block of M_ii, factored once
     n = drive.n_independent(scene)
 
     def f(t, y, args):
         del args
-        qi, qd = y[:n], y[n:]
-        return jnp.concatenate([qd, drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t)])
+        qi, qd, z = split_state(y, n)
+        if z.size == 0:
+            return jnp.concatenate([qd, drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t)])
+        return jnp.concatenate([qd, *drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t, slip=z)])
 
     return f
+
+
+def start_vector(scene: Scene, qi0, qd0):
+    """The transient's initial state y(0) from q_i(0), q_i'(0): the belt has not slid."""
+    return jnp.concatenate([qi0, qd0, belt_slip.initial(scene, qi0.dtype)])
 
 
 def default_solver(scene: Scene) -> str:
@@ -403,7 +412,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     inst, qi0, qd0 = initial_state(scene)
     # the compiled integrator and outputs do not depend on the initial-state table
     scene = dataclasses.replace(scene, initial=Initial())
-    y = jnp.concatenate([qi0, qd0])
+    y = start_vector(scene, qi0, qd0)
     ts_all, ys_all, steps = [np.zeros(1)], [np.asarray(y)[None]], 0
     compile_s = None
     dt0 = jnp.asarray(dt, dtype=y.dtype)

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 
 from beltjax import critical, drive
 from beltjax.scene import Scene
-from beltjax.drive import couplings
+from beltjax.drive import belt_slip, couplings
 from beltjax.drive.effects import effects_of
 
 
@@ -32,16 +32,17 @@ def output_nodes(scene: Scene) -> list[tuple[int, int, str]]:
 def _outputs_one(t, y, scene: Scene, inst, M_full):
     """All output channels at one saved state (t s, y)."""
     n_i = drive.n_independent(scene)
-    qi, qd = y[:n_i], y[n_i:]
+    qi, qd, z = belt_slip.split_state(y, n_i)
+    z = z if z.size else None
     n = len(scene.route.order)
     nrp = drive.n_reaction_points(scene)
 
     def phi(x, tt, shift, drv):
-        return drive.full_coordinates(x, scene, inst, driven_angle=drv, t=tt, shift=shift)
+        return drive.full_coordinates(x, scene, inst, driven_angle=drv, t=tt, shift=shift, slip=z)
 
     shift0 = jnp.zeros((nrp, 2))
     drv0 = jnp.zeros(n)
-    q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t)
+    q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t, slip=z)
     ti = drive.travel_inertia(q, v, gamma, scene, inst, t)
     qdd = jnp.linalg.solve(*drive.with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))
     a = J @ qdd + gamma
@@ -83,6 +84,11 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         out["rotor_speeds_rpm"] = Bd[rows, 2] * 60.0 / (2 * jnp.pi)
         stiff = jnp.stack([d.stiffness for d in scene.decouplers])
         out["decoupler_moments_Nm"] = couplings.decoupler_moment(couplings.windups(B[:n, 2], B[rows, 2], scene), stiff)
+    if z is not None:  # the belt's sliding over each rim (gross slip, creep) and its friction power
+        rims = jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii * Bd[:n, 2]
+        z_dot = belt_slip.rates(forces, lam, rims, scene, inst.wrap)
+        out["slip_speeds_m_s"], out["creep_speeds_m_s"] = z_dot[:n], z_dot[n:]
+        out["friction_power_W"] = belt_slip.dissipation(forces, z_dot, n)
     nodes = output_nodes(scene)
     if nodes:
         disp = []
@@ -120,6 +126,8 @@ def _columns(scene: Scene) -> dict[str, list[str]]:
     if scene.decouplers:
         cols["rotor_speeds_rpm"] = [f"{d.pulley} rotor" for d in scene.decouplers]
         cols["decoupler_moments_Nm"] = [d.pulley for d in scene.decouplers]
+    if belt_slip.n_states(scene):
+        cols["slip_speeds_m_s"] = cols["creep_speeds_m_s"] = list(scene.route.order)
     return cols
 
 
@@ -140,4 +148,7 @@ UNITS = dict(
     node_displacements_m="m",
     friction_needed="-",
     slip_margins="-",
+    slip_speeds_m_s="m/s",
+    creep_speeds_m_s="m/s",
+    friction_power_W="W",
 )

@@ -22,6 +22,8 @@ Effects (units of the parameters they own):
   fluctuation of a driven pulley's angle.
 - ``tensioner_friction``: tensioner.friction_moment (N m), friction_asymmetry (-),
   friction_speed (rad/s): dry friction at the tensioner pivot (:mod:`beltjax.drive.pivot`).
+- ``belt_slip``: belt.slip_speed (m/s): creep and gross slip of the belt on every wrapped arc,
+  two states per arc in the transient (:mod:`beltjax.drive.belt_slip`; rotational model).
 """
 
 from __future__ import annotations
@@ -233,6 +235,14 @@ class TensionerFriction(Effect):
         return f.at[-1, 2].add(pivot.friction_moment(bodies_dot[-1, 2], bodies[-1, 2], scene.tensioner))
 
 
+class BeltSlip(Effect):
+    """Creep and gross slip on every wrapped arc: its slip states ride in the transient's state
+    and slide the spans' end nodes in the kinematic map (:mod:`beltjax.drive.belt_slip`); it
+    contributes no potential or force of its own."""
+
+    name: ClassVar[str] = "belt_slip"
+
+
 class Unbalance(Effect):
     """Pulley centres of mass off the axis by cm_offset (m, in the pulley's frame): a pulley's
     body position is the centre of mass of the pulley and its wrapped belt (on the axis)."""
@@ -273,7 +283,7 @@ class SpeedFluctuation(Effect):
 #: every effect module, by the name a scene lists
 MODULES: dict[str, type[Effect]] = {m.name: m for m in (Transport, Gravity, BeltDamping, BearingDamping,
                                                           TensionerDamping, Unbalance, SpeedFluctuation,
-                                                          TensionerFriction)}
+                                                          TensionerFriction, BeltSlip)}
 assert tuple(MODULES) == EFFECTS
 
 

@@ -14,6 +14,7 @@ from beltjax import ancf, span
 from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, drive_pulley, element_length, n_rigid, n_span_coordinates, travel_coordinate, travel_follows_drive
 from beltjax.drive.spans import spans_of
+from beltjax.drive import belt_slip
 from beltjax.drive.effects import effects_of
 from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, rotor_angles, full_coordinates, span_lengths_and_jacobian, split_full
 from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix, mean_body_loads
@@ -24,7 +25,7 @@ def transport_speed(scene: Scene, inst: Installation, speed):
     return speed / inst.stretch
 
 
-def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, rigid_only=False):
+def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, rigid_only=False, slip=None):
     """Full coordinates and what the reduced equations need of them, at (q_i, q_i', t).
 
     Returns (q, v, gamma, J, F): q = Phi(q_i, t) and its rate v; gamma = d(J q_i')/dt at
@@ -33,27 +34,28 @@ def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None,
     map without time); with a time t (s) the belt speed and its rate follow
     :func:`belt_travel` and the damping effects and loads act.  rigid_only: J holds only
     the columns of the rigid coordinates, ``J[:, :n_rigid]`` (the span columns are the
-    constant selection of :func:`span_coordinate_index`).
+    constant selection of :func:`span_coordinate_index`).  slip: the belt's slip states (m,
+    :mod:`beltjax.drive.belt_slip`), held at this instant (their rates reach no inertia).
     """
     if rigid_only:
         nr = n_rigid(scene)
-        q, v, gamma, _, F = _full_motion(qi, qi_dot, scene, inst, speed, t, skip_jacobian=True)
+        q, v, gamma, _, F = _full_motion(qi, qi_dot, scene, inst, speed, t, skip_jacobian=True, slip=slip)
         steady = t is None
         tt = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
         rest = qi[nr:]
 
         def phi_r(xr):
-            return full_coordinates(jnp.concatenate([xr, rest]), scene, inst, t=None if steady else tt)
+            return full_coordinates(jnp.concatenate([xr, rest]), scene, inst, t=None if steady else tt, slip=slip)
 
         return q, v, gamma, jax.jacfwd(phi_r)(qi[:nr]), F
-    return _full_motion(qi, qi_dot, scene, inst, speed, t)
+    return _full_motion(qi, qi_dot, scene, inst, speed, t, slip=slip)
 
 
-def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, skip_jacobian=False):
+def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, skip_jacobian=False, slip=None):
     steady = t is None
     t = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
     one = jnp.zeros_like(t) if steady else jnp.ones_like(t)  # the time's tangent
-    phi = lambda x, tt: full_coordinates(x, scene, inst, t=None if steady else tt)  # noqa: E731
+    phi = lambda x, tt: full_coordinates(x, scene, inst, t=None if steady else tt, slip=slip)  # noqa: E731
     rate = lambda x, tt: jax.jvp(phi, (x, tt), (qi_dot, one))[1]  # noqa: E731
     q, v = jax.jvp(phi, (qi, t), (qi_dot, one))
     if spans_of(scene).massive:
@@ -137,7 +139,8 @@ def _small_matmul_tn(A, B):
     return jnp.sum(A[:, :, None] * B[:, None, :], axis=0)
 
 
-def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
+def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0,
+                          slip=None):
     """q_i'' = M_ii^-1 F_ii of :func:`reduced_system`, by the block structure of J (rad/s^2, m/s^2).
 
     J = [J_r | S]: the rigid columns J_r (autodiff, n_rigid tangents) and the constant
@@ -148,8 +151,12 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     O(n^2) per call instead of forming J^T M J (O(n_full^2 n)) and an LU (O(n^3)).  Same
     equations as ``jnp.linalg.solve(*reduced_system(...))`` to round-off.  The rotational
     model (massless bars) goes by the span lengths instead: :func:`bar_accelerations`.  The span
-    component chooses (:meth:`beltjax.drive.spans.SpanModel.accelerations`).
+    component chooses (:meth:`beltjax.drive.spans.SpanModel.accelerations`).  With slip states
+    ``slip`` (m, effect ``belt_slip``: :mod:`beltjax.drive.belt_slip`) it returns
+    (q_i'', the slip rates m/s).
     """
+    if slip is not None:
+        return spans_of(scene).accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip=slip)
     return spans_of(scene).accelerations(qi, qi_dot, scene, inst, rm, t, speed)
 
 
@@ -181,7 +188,7 @@ def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduce
     return jnp.concatenate([a_r, X[:, nr] - X[:, :nr] @ a_r])
 
 
-def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
+def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0, slip=None):
     """:func:`reduced_accelerations` of the rotational model (rad/s^2), from the span lengths.
 
     Its spans are massless bars: their nodes carry no inertia, and their forces reach q_i
@@ -190,7 +197,9 @@ def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedM
     J_b of J and the bars' axial forces N = dV/dl (Green-Lagrange, less the centrifugal
     term: :func:`beltjax.drive.spans.bar_energy`).  Same equations as the general path to round-off
     (tests/test_fast_paths.py), about 4x cheaper on the tensioner bench: the span nodes'
-    coordinates and their derivatives are never formed.
+    coordinates and their derivatives are never formed.  With slip states ``slip`` (m,
+    :mod:`beltjax.drive.belt_slip`) the spans' lengths carry the slip's share and the slip
+    rates (m/s) are returned beside q_i''.
     """
     steady = t is None
     tt = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
@@ -205,6 +214,9 @@ def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedM
     _, gamma_b = jax.jvp(lambda x, time: jax.jvp(bodies, (x, time), (qi_dot, one))[1], (qi, tt), (qi_dot, one))
     J_b = jax.jacfwd(bodies)(qi, tt)
     l, J_l = span_lengths_and_jacobian(qi, scene, inst)
+    n = len(scene.route.order)
+    if slip is not None:
+        l = l + belt_slip.length_offsets(slip, n)
     B, B_dot = b.reshape(-1, 3), b_dot.reshape(-1, 3)
     if steady:
         c = transport_speed(scene, inst, speed)
@@ -218,7 +230,11 @@ def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedM
                  in_axes=(0, None if rate is None else 0, 0))(l, rate, L0)
     F_b = body_forces(B, scene, inst, None if steady else B_dot, None if steady else tt).reshape(-1)
     F_i = _small_matmul_tn(J_b, F_b - rm.m_body * gamma_b) - _small_matmul_tn(J_l, N)
-    return _small_spd_solve(_small_matmul_tn(J_b, rm.m_body[:, None] * J_b), F_i)
+    acc = _small_spd_solve(_small_matmul_tn(J_b, rm.m_body[:, None] * J_b), F_i)
+    if slip is None:
+        return acc
+    rims = jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii * B_dot[:n, 2]
+    return acc, belt_slip.rates(N, l / L0, rims, scene, inst.wrap)
 
 
 #: largest rigid block solved by the unrolled Gauss-Jordan elimination of :func:`_small_spd_solve`

@@ -14,6 +14,7 @@ from beltjax.drive.layouts import layout_of
 from beltjax.drive.spans import spans_of
 from beltjax.drive.effects import effects_of
 from beltjax.drive.assembly import drive_of
+from beltjax.drive import belt_slip
 
 
 def _split(qi, scene: Scene):
@@ -75,7 +76,7 @@ def n_reaction_points(scene: Scene) -> int:
     return len(scene.route.order) + len(layout_of(scene).body_names)
 
 
-def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=None, shift=None):
+def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=None, shift=None, slip=None):
     """The kinematic map q = Phi(q_i, t): full coordinates from independent ones.
 
     qi: independent coordinates (m, rad, -); driven_angle: prescribed rotation
@@ -90,7 +91,8 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     compute bearing reactions; None = 0.  Returns the full vector: span coordinates
     (n spans x 4 (N+1)), then (x, y, angle) per body (m, rad); with ``unbalance`` the
     (x, y) of a pulley is the centre of mass of the pulley (offset by cm_offset, turning
-    with it) and of its wrapped belt (on the axis).
+    with it) and of its wrapped belt (on the axis).  slip: the belt's slip states (m,
+    :mod:`beltjax.drive.belt_slip`, effect ``belt_slip``), sliding the span end nodes; None = 0.
     """
     model = spans_of(scene)
     _, spans = _split(qi, scene)
@@ -101,6 +103,9 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
         d = drive_pulley(scene)
         travel = scene.route.senses[d] * radii[d] * phi[d]
     start, end, t_hat = _span_ends(phi, centers, radii, scene, inst, travel)
+    if slip is not None and slip.size:
+        s0, s1 = belt_slip.node_shifts(slip, len(scene.route.order))
+        start, end = start + s0[:, None] * t_hat, end + s1[:, None] * t_hat
     parts = [model.nodes(start[s], end[s], t_hat[s], None if spans is None else spans[s], inst.stretch)
              for s in range(len(scene.route.order))]
     return jnp.concatenate(parts + [_body_coordinates(phi, theta, centers, scene, inst, t, shift,

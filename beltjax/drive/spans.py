@@ -221,10 +221,10 @@ class BarSpans(SpanModel):
         lam = jnp.linalg.norm(E[:, 4:6] - E[:, 0:2], axis=1) / Le
         return ancf.axial_force(lam, EA)
 
-    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0):
+    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
         from beltjax.drive.equations import bar_accelerations
 
-        return bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed)
+        return bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip)
 
 
 def bar_energy(l2, L0, EA, rhoA, c):

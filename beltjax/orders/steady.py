@@ -30,12 +30,14 @@ from beltjax import critical, drive, friction, parameters, statics
 from beltjax.excitation import ADAPTIVE_PERIOD_FRACTION
 from beltjax.scene import Scene
 from beltjax.drive.couplings import isolator_wind_up
-from beltjax.transient import vector_field
+from beltjax.drive import belt_slip
+from beltjax.transient import start_vector, vector_field
 from beltjax.transient_outputs import _outputs_one
 
 #: the transient channels reduced over the cycle (those a scene has; units: transient_outputs.UNITS)
 CHANNELS = ("arm_angle_deg", "span_tensions_N", "hub_force_magnitudes_N", "pulley_speeds_rpm", "drive_torques_Nm",
-            "spring_moment_Nm", "isolator_moment_Nm", "rotor_speeds_rpm", "decoupler_moments_Nm")
+            "spring_moment_Nm", "isolator_moment_Nm", "rotor_speeds_rpm", "decoupler_moments_Nm", "slip_speeds_m_s",
+            "friction_power_W")
 #: the statistics of each channel over the recorded cycle
 STATS = ("mean", "min", "max", "p2p")
 #: the adaptive solvers a steady state may use
@@ -111,14 +113,18 @@ def _reduce(x, settings: Settings):
     return dict(mean=x.mean(axis=0), min=lo, max=hi, p2p=hi - lo, orders=jnp.moveaxis(amp, 0, -1))
 
 
-def _settling(y_early, y_late, n: int):
-    """Largest change of the state between two phase-aligned cycles (K, 2n) against the state's
-    range over the late cycle, for positions and speeds apart (-)."""
+def _settling(y_early, y_late, n: int, dt, creeping=None):
+    """Largest change of the state between two phase-aligned cycles (K, 2n) dt (s) apart against
+    the state's range over the late cycle, for positions and speeds apart (-).  The coordinates
+    ``creeping`` (n,) 1.0 / 0.0 (the rotations of free pulleys and rotors with ``belt_slip``) are
+    compared after the drift of the late cycle's mean speed over dt: a pulley that creeps turns
+    steadily slower than the nominal rolling, and its angle does not repeat."""
     def part(a, b):
         span = jnp.max(b.max(axis=0) - b.min(axis=0))
         return jnp.max(jnp.abs(b - a)) / jnp.maximum(span, 1e-300)
 
-    return jnp.maximum(part(y_early[:, :n], y_late[:, :n]), part(y_early[:, n:], y_late[:, n:]))
+    drift = 0.0 if creeping is None else creeping * dt * jnp.mean(y_late[:-1, n:], axis=0)
+    return jnp.maximum(part(y_early[:, :n] + drift, y_late[:, :n]), part(y_early[:, n:], y_late[:, n:]))
 
 
 def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -> dict:
@@ -144,7 +150,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -
     qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, loaded=loaded)
     torque = drive.drive_torque(qi, sc, inst, v, loaded)
     qi = isolator_wind_up(sc, inst, qi, torque)
-    y0 = jnp.concatenate([qi, jnp.zeros_like(qi)])
+    y0 = start_vector(sc, qi, jnp.zeros_like(qi))
     n = qi.shape[0]
 
     K = settings.samples
@@ -181,7 +187,10 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -
         out["min_slip_margin"] = jnp.min(margins, axis=0)
     out["hub_forces_N"] = chans["hub_forces_N"]
     out["t_s"] = t_rec
-    out["settling"] = _settling(early, late, n)
+    creeping = None
+    if belt_slip.n_states(sc):  # the slip states drift, and so do the creeping pulleys' angles
+        creeping = jnp.zeros(n).at[: sum(free) + len(sc.decouplers)].set(1.0)
+    out["settling"] = _settling(early[:, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
     out["converged"] = conv
     out["supercritical"] = critical.supercritical(sc, qi, inst, v).astype(jnp.float64)
     out["solver_ok"] = (sol.result == diffrax.RESULTS.successful).astype(jnp.float64)

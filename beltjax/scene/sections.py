@@ -39,7 +39,8 @@ _TOP_KEYS = (
 )
 
 
-_BELT_KEYS = ("EA", "EI", "rhoA", "static_tension", "length", "CA", "friction_coefficient", "groove_angle_deg")
+_BELT_KEYS = ("EA", "EI", "rhoA", "static_tension", "length", "CA", "friction_coefficient", "groove_angle_deg",
+              "slip_speed")
 
 
 _PULLEY_KEYS = (
@@ -83,6 +84,7 @@ _EFFECT_PARAMETERS = {
     "unbalance": "pulley[i].cm_offset",
     "speed_fluctuation": "pulley[i].fluctuation_amplitude_deg",
     "tensioner_friction": "tensioner.friction_moment",
+    "belt_slip": "belt.slip_speed",
 }
 
 
@@ -126,8 +128,9 @@ def _parse_belt(data, source) -> Belt:
     CA = _num(t, "CA", "belt", required=False, default=0.0)
     mu = _num(t, "friction_coefficient", "belt", required=False)
     groove = _num(t, "groove_angle_deg", "belt", required=False)
+    slip = _num(t, "slip_speed", "belt", required=False, default=10.0)
     return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA),
-                friction_coefficient=_arr(mu), groove_angle_deg=_arr(groove))
+                friction_coefficient=_arr(mu), groove_angle_deg=_arr(groove), slip_speed=_arr(slip))
 
 
 def _parse_pulley(data, i, source) -> Pulley:
@@ -416,3 +419,8 @@ def _check_effects(scene: Scene, source: str):
 
     for key, name in effects_of(scene).unlisted_parameters(scene):
         _fail(key, f"given but \"{name}\" is not in model.effects", source)
+    from beltjax.drive import belt_slip
+
+    refused = belt_slip.check(scene)
+    if refused is not None:
+        _fail(*refused, source)

@@ -22,6 +22,7 @@ EFFECTS = (
     "unbalance",  # pulley centre-of-mass offsets (pulley.cm_offset)
     "speed_fluctuation",  # harmonic fluctuation of a driven pulley's angle
     "tensioner_friction",  # dry (Coulomb) friction at the tensioner pivot
+    "belt_slip",  # creep and gross slip of the belt on every wrapped arc (rotational model)
 )
 
 
@@ -60,7 +61,9 @@ class Belt(eqx.Module):
     and length (unstretched belt length, m) is an array, the other None.
     friction_coefficient (-): belt on pulley, or None (slip margins not assessed);
     groove_angle_deg (deg): a V or ribbed belt's groove angle (its wedge raises the friction
-    of the pulleys it wraps with its ribs to mu / sin(angle / 2)), or None (a flat belt).
+    of the pulleys it wraps with its ribs to mu / sin(angle / 2)), or None (a flat belt);
+    slip_speed (m/s, effect ``belt_slip``): the gross-slip law's regularisation, the sliding
+    speed at which an arc carries twice its capstan capacity (:mod:`beltjax.drive.belt_slip`).
     """
 
     EA: jax.Array
@@ -71,6 +74,7 @@ class Belt(eqx.Module):
     CA: jax.Array
     friction_coefficient: jax.Array | None = None
     groove_angle_deg: jax.Array | None = None
+    slip_speed: jax.Array = 10.0
 
 
 class Pulley(eqx.Module):

@@ -1,0 +1,134 @@
+"""Belt creep and gross slip on every wrapped arc (effect ``belt_slip``, the rotational model).
+
+Without this effect the belt sticks to every rim: each pulley's rim feeds its exit span and
+drains its entry span at its own speed, so every rim runs at the belt's speed and an arc
+carries any tension ratio.  With it, each route entry i has two slip states (m, along the
+belt in its direction of travel, relative to the rim):
+
+- ``g_i``, gross slip: how far the belt on the arc has slid over the rim as a whole;
+- ``u_i``, creep: how much more belt has left the arc into its exit span than the rim carried.
+
+The kinematic map (:func:`beltjax.drive.kinematics.full_coordinates`) slides span i's start
+node (the exit of entry i) by ``g_i + u_i`` and its end node (the entry of entry i + 1) by
+``g_{i+1}``, so every span's length, tension and force on the pulleys, and through them the
+pulleys' torques, follow the slip; nothing else changes.  Their rates:
+
+- **creep** (classical creep theory, Reynolds/Grashof): the belt adheres where it runs on and
+  creeps over the arc to its exit, where it leaves with the exit span's stretch:
+  ``u_i' = max(v_i + g_i', 0) (lam_out / lam_in - 1)``, v_i the rim speed (m/s; plus the gross
+  slip, the belt's speed where it runs on), lam the spans' stretches l / L0.  A steady drive then turns each pulley at
+  ``v_{i+1} = v_i lam_i / lam_{i-1}`` (driven pulleys slower than the radius ratio says) and
+  dissipates ``sum_i F_i u_i'``: the creep loss (F the exit span's force).  No regularisation:
+  this is a smooth rate.  A rim turning backwards (v < 0) creeps nothing (a reversed belt's
+  entry and exit swap; not modelled);
+- **gross slip** (the capstan law, regularised): the arc transmits a force difference
+  ``dF = F_in - F_out`` (the spans' forces on the pulleys, T - rhoA c^2 lam) up to its
+  capacity ``C = F_min (exp(mu' theta) - 1)`` (Euler-Eytelwein: mu' the effective coefficient
+  of :func:`beltjax.friction.effective_coefficients`, theta the installed wrap), beyond which
+  the belt slides over the whole arc: ``g_i' = -v_r z(dF / C)``, z the dead zone
+  ``sign(x) max(|x| - 1, 0)`` rounded (C1) over 1 % of C.  The sliding arc transmits
+  ``C (1 + |g'| / v_r)``: v_r (``belt.slip_speed``, m/s) is the regularisation, a linear rise
+  of the friction force with the sliding speed that makes the law smooth and the slip state an
+  ODE rather than a complementarity problem.  What it changes is measured in
+  tests/test_belt_slip.py (the overload carried is |g'| / v_r of the capacity) and its cost in
+  benchmarks/bench_belt_slip.py.  The friction power ``-dF g'`` is dissipated.
+
+Limits: rotational model only (the hybrid model's arcs are Eulerian contacts without their
+own belt material); the wrap is the installed one (an arm swing changes it a little);
+belt damping acts on the spans' kinematic stretching rate only.  Units: SI.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from beltjax import friction
+from beltjax.scene import Scene
+
+#: the dead zone's rounding, as a fraction of the capacity
+ROUNDING = 1e-2
+
+
+def n_states(scene: Scene) -> int:
+    """Slip states of ``scene``: 2 per route entry with ``belt_slip`` listed, else 0."""
+    from beltjax.drive.effects import effects_of
+
+    return 2 * len(scene.route.order) if "belt_slip" in effects_of(scene) else 0
+
+
+def initial(scene: Scene, dtype=jnp.float64):
+    """The slip states at the start of a transient: none has slid (m), shape (n_states,)."""
+    return jnp.zeros(n_states(scene), dtype=dtype)
+
+
+def split_state(y, n: int):
+    """A transient's state -> (q_i, q_i', the slip states: empty without ``belt_slip``), for
+    n = n_independent; y (..., 2 n + n_states)."""
+    return y[..., :n], y[..., n:2 * n], y[..., 2 * n:]
+
+
+def node_shifts(z, n: int):
+    """How far each span's start and end node slide along it (m), each (n,), for slip states
+    z = (g, u) (2n,) m: start by g_i + u_i, end by g_{i+1}."""
+    g, u = z[:n], z[n:]
+    return g + u, jnp.roll(g, -1)
+
+
+def length_offsets(z, n: int):
+    """The slip's share of each span's length (m), (n,): end shift - start shift."""
+    start, end = node_shifts(z, n)
+    return end - start
+
+
+def dead_zone(x, width=ROUNDING):
+    """sign(x) max(|x| - 1, 0), rounded to C1 over |x| in [1, 1 + width] (-)."""
+    a = jnp.abs(x) - 1.0
+    inner = jnp.where(a > 0, a, 0.0) ** 2 / (2 * width)
+    return jnp.sign(x) * jnp.where(a > width, a - 0.5 * width, inner)
+
+
+def capacities(forces, scene: Scene, wrap):
+    """Force difference (N) each arc carries without gross slip, (n,) route order: the smaller
+    span force (floored at 0) times exp(mu' theta) - 1; forces (n,) N (span i leaves entry i),
+    wrap (n,) rad."""
+    mu = friction.effective_coefficients(scene)
+    f_in = jnp.roll(forces, 1)
+    low = jnp.maximum(jnp.minimum(forces, f_in), 0.0)
+    return low * jnp.expm1(mu * wrap)
+
+
+def rates(forces, stretches, rim_speeds, scene: Scene, wrap):
+    """Slip rates (m/s) (g', u'), (2n,): forces (n,) N each span's force on the pulleys (span
+    i leaves entry i), stretches (n,) the spans' l / L0, rim_speeds (n,) m/s along the belt's
+    travel, wrap (n,) rad (see the module docstring)."""
+    f_in = jnp.roll(forces, 1)
+    cap = capacities(forces, scene, wrap)
+    # a slack arc (no force on either side) holds nothing: a tiny capacity keeps the ratio finite
+    cap = jnp.maximum(cap, 1e-6)
+    g_dot = 0.0 - scene.belt.slip_speed * dead_zone((f_in - forces) / cap)  # (no -0.0 where it holds)
+    lam_in = jnp.roll(stretches, 1)
+    u_dot = jnp.maximum(rim_speeds + g_dot, 0.0) * (stretches / lam_in - 1.0)
+    return jnp.concatenate([g_dot, u_dot])
+
+
+def dissipation(forces, z_dot, n: int):
+    """Friction power (W) of the slip rates z_dot (2n,) under span forces (n,) N: the gross
+    slip's -dF g' plus the creep loss sum F_out u'."""
+    g_dot, u_dot = z_dot[:n], z_dot[n:]
+    return jnp.sum(-(jnp.roll(forces, 1) - forces) * g_dot) + jnp.sum(forces * u_dot)
+
+
+def check(scene: Scene) -> tuple[str, str] | None:
+    """(key, why) when ``scene`` cannot list ``belt_slip``, else None."""
+    if n_states(scene) == 0:
+        return None
+    if scene.model.fidelity != "rotational":
+        return ("model.effects", "belt_slip is built for the rotational model (fidelity = \"rotational\"): the "
+                "hybrid model's arcs keep their grip")
+    given = set(friction.given(scene))
+    missing = [name for i, name in enumerate(scene.route.order) if i not in given]
+    if missing:
+        return ("belt.friction_coefficient", "belt_slip needs a friction coefficient on every wrapped arc; none for "
+                + ", ".join(repr(m) for m in missing))
+    return None
