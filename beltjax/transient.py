@@ -163,8 +163,10 @@ def vector_field(scene: Scene, inst):
     return f
 
 
-def start_vector(scene: Scene, qi0, qd0):
-    """The transient's initial state y(0) from q_i(0), q_i'(0): the belt has not slid."""
+def start_vector(scene: Scene, inst, qi0, qd0):
+    """The transient's initial state y(0) from q_i(0), q_i'(0): the belt has not slid; with
+    ``belt_slip`` the pulleys run at their steady creep (:func:`beltjax.drive.belt_slip.creep_start`)."""
+    qd0 = belt_slip.creep_start(scene, inst, qi0, qd0)
     return jnp.concatenate([qi0, qd0, belt_slip.initial(scene, qi0.dtype)])
 
 
@@ -412,7 +414,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     inst, qi0, qd0 = initial_state(scene)
     # the compiled integrator and outputs do not depend on the initial-state table
     scene = dataclasses.replace(scene, initial=Initial())
-    y = start_vector(scene, qi0, qd0)
+    y = start_vector(scene, inst, qi0, qd0)
     ts_all, ys_all, steps = [np.zeros(1)], [np.asarray(y)[None]], 0
     compile_s = None
     dt0 = jnp.asarray(dt, dtype=y.dtype)

@@ -68,6 +68,28 @@ def split_state(y, n: int):
     return y[..., :n], y[..., n:2 * n], y[..., 2 * n:]
 
 
+def creep_start(scene: Scene, inst, qi, qd):
+    """The free pulleys' (and their rotors') rotation rates q_i' (rad/s) of a steady creep from
+    the state q_i: each rim runs at the speed of its entry span's belt, v_i = v lam_{i-1} /
+    lam_{d-1} with v the drive pulley's rim speed (m/s, its mean) and d the drive pulley, so a
+    transient with ``belt_slip`` starts in its steady creep rather than in a small transient to
+    it.  Unchanged without ``belt_slip``, or when the drive pulley is turned by a torque."""
+    from beltjax import drive
+
+    if n_states(scene) == 0 or drive.travel_follows_drive(scene):
+        return qd
+    n = len(scene.route.order)
+    lam = drive.span_lengths(qi, scene, inst) / drive.element_length(scene, inst)
+    d = drive.drive_pulley(scene)
+    lam_in = jnp.roll(lam, 1)
+    v = drive.belt_speed(scene) * (lam_in / lam_in[d] - 1.0)  # each rim's speed beyond the nominal rolling
+    rate = v / (jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii)
+    free = [i for i, f in enumerate(drive.is_free(scene)) if f]
+    rotors = [free.index(i) for i in drive.drive_of(scene).rotors] if scene.decouplers else []
+    out = rate[jnp.asarray(free, dtype=int)] if free else jnp.zeros(0, dtype=qi.dtype)
+    return qd.at[: len(free) + len(rotors)].set(jnp.concatenate([out, out[jnp.asarray(rotors, dtype=int)]]))
+
+
 def node_shifts(z, n: int):
     """How far each span's start and end node slide along it (m), each (n,), for slip states
     z = (g, u) (2n,) m: start by g_i + u_i, end by g_{i+1}."""

@@ -150,7 +150,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -
     qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, loaded=loaded)
     torque = drive.drive_torque(qi, sc, inst, v, loaded)
     qi = isolator_wind_up(sc, inst, qi, torque)
-    y0 = start_vector(sc, qi, jnp.zeros_like(qi))
+    y0 = start_vector(sc, inst, qi, jnp.zeros_like(qi))
     n = qi.shape[0]
 
     K = settings.samples
