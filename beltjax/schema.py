@@ -100,8 +100,9 @@ FIELDS: dict[str, Field] = {
     "belt.length": Field(_LEN, 1e-3, 1e6, "from a 1 mm loop to a 1000 km belt", ">0"),
     "belt.friction_coefficient": _FRICTION,
     "belt.groove_angle_deg": Field("deg", 10.0, 120.0, "V and ribbed belts have 30-40 deg grooves", ">0"),
-    "belt.slip_speed": Field("m/s", 1e-3, 1e4, "the regularisation: far above the sliding speeds that matter "
-                                               "(it is the speed at which an arc carries twice its capacity)", ">0",
+    "belt.slip_speed": Field("m/s", 1e-3, 1e4, "the regularisation: above the sliding speeds that matter (at "
+                                               "this speed an arc carries its installed capacity beyond its "
+                                               "capacity)", ">0",
                              "belt_slip"),
     "pulley.center": _CENTRE,
     "pulley.radius": _RADIUS,

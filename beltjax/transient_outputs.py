@@ -42,7 +42,11 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
 
     shift0 = jnp.zeros((nrp, 2))
     drv0 = jnp.zeros(n)
-    q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t, slip=z)
+    z_dot = None
+    if z is not None:  # the slip rates of the equations (:func:`beltjax.drive.bar_accelerations`)
+        rm = drive.ReducedMass(M_full, None, None, jnp.diagonal(M_full)[drive.n_span_coordinates(scene):])
+        z_dot = drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t, slip=z)[1]
+    q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t, slip=z, slip_rate=z_dot)
     ti = drive.travel_inertia(q, v, gamma, scene, inst, t)
     qdd = jnp.linalg.solve(*drive.with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))
     a = J @ qdd + gamma
@@ -85,8 +89,6 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         stiff = jnp.stack([d.stiffness for d in scene.decouplers])
         out["decoupler_moments_Nm"] = couplings.decoupler_moment(couplings.windups(B[:n, 2], B[rows, 2], scene), stiff)
     if z is not None:  # the belt's sliding over each rim (gross slip, creep) and its friction power
-        rims = jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii * Bd[:n, 2]
-        z_dot = belt_slip.rates(forces, lam, rims, scene, inst.wrap)
         out["slip_speeds_m_s"], out["creep_speeds_m_s"] = z_dot[:n], z_dot[n:]
         out["friction_power_W"] = belt_slip.dissipation(forces, z_dot, n)
     nodes = output_nodes(scene)

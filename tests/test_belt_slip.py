@@ -9,8 +9,8 @@ loaded):
 - gross slip: past the capstan limit the arc transmits what Euler-Eytelwein allows,
   2 F_0 R tanh(mu theta / 2) (F_0 the installation tension, kept by the belt's length), the
   alternator falls behind the belt, and its sliding speed is the belt's speed less its rim's;
-- the regularisation: the torque carried while sliding exceeds the capacity by |g'| / v_r
-  (measured at two values of belt.slip_speed);
+- the regularisation: the torque carried while sliding exceeds the capacity by at most
+  C_0 |g'| / v_r (measured at two values of belt.slip_speed);
 - energy: the work of the crank's drive equals the load's work, the friction loss and the
   change of kinetic and elastic energy, through the onset of slip (the kinetic energy with the
   model's inertia: the alternator carries its wrapped belt, 1 % of its own);
@@ -114,17 +114,27 @@ def test_past_the_capstan_limit_the_arc_carries_euler_eytelwein_and_the_pulley_f
     assert np.max(c["slip_speeds_m_s"][after, 1]) > 1.0  # well into sliding
 
 
-def test_the_regularisation_carries_slip_speed_over_v_r_above_the_capacity(overload):
+def test_the_regularisation_carries_c0_slip_speed_over_v_r_above_the_capacity(overload):
+    """The sliding arc carries C + C_0 |g'| / v_r (+ at most half the ramp's rounding of C_0): C its
+    capstan capacity at its current slack-side force F_s, C_0 at the installation tension F_0.
+    Against the closed-form limit (C at F_s = 2 F_0 / (1 + exp(mu theta))) the excess is at most
+    F_0 / F_s times |g'| / v_r."""
     sc, m_max, runs = overload
     R = float(sc.pulley("alternator").radius)
+    F0 = float(sc.belt.static_tension)
     for vr, res in runs.items():
         c = res.channels
         late = res.t > 0.05
         F = c["span_forces_N"][late]
-        excess = R * (F[:, 1] - F[:, 0]) / m_max - 1
-        assert np.mean(excess) == pytest.approx(np.mean(c["slip_speeds_m_s"][late, 1]) / vr, abs=3e-3)
-    # at v_r = 100 m/s the excess is visible (> 1 %), at 1e4 it is not
-    assert np.min(runs[1e2].channels["slip_speeds_m_s"][runs[1e2].t > 0.05, 1]) / 1e2 > 1e-2
+        excess = np.mean(R * (F[:, 1] - F[:, 0]) / m_max - 1)
+        bound = F0 / np.mean(F[:, 0]) * (np.mean(c["slip_speeds_m_s"][late, 1]) / vr + belt_slip.ROUNDING / 2)
+        assert -3e-3 < excess < bound + 3e-3  # 3e-3: the closed form's own accuracy
+    # at v_r = 100 m/s the excess is visible (> 1 % at 1.6 m/s of sliding), at 1e4 it is not
+    late = runs[1e2].t > 0.05
+    F = runs[1e2].channels["span_forces_N"][late]
+    assert np.mean(R * (F[:, 1] - F[:, 0]) / m_max - 1) > 1e-2
+    F = runs[1e4].channels["span_forces_N"][runs[1e4].t > 0.05]
+    assert abs(np.mean(R * (F[:, 1] - F[:, 0]) / m_max - 1)) < 3e-3
 
 
 def test_energy_balance_through_the_onset_of_slip():

@@ -25,17 +25,21 @@ pulleys' torques, follow the slip; nothing else changes.  Their rates:
   ``dF = F_in - F_out`` (the spans' forces on the pulleys, T - rhoA c^2 lam) up to its
   capacity ``C = F_min (exp(mu' theta) - 1)`` (Euler-Eytelwein: mu' the effective coefficient
   of :func:`beltjax.friction.effective_coefficients`, theta the installed wrap), beyond which
-  the belt slides over the whole arc: ``g_i' = -v_r z(dF / C)``, z the dead zone
-  ``sign(x) max(|x| - 1, 0)`` rounded (C1) over 1 % of C.  The sliding arc transmits
-  ``C (1 + |g'| / v_r)``: v_r (``belt.slip_speed``, m/s) is the regularisation, a linear rise
-  of the friction force with the sliding speed that makes the law smooth and the slip state an
-  ODE rather than a complementarity problem.  What it changes is measured in
-  tests/test_belt_slip.py (the overload carried is |g'| / v_r of the capacity) and its cost in
-  benchmarks/bench_belt_slip.py.  The friction power ``-dF g'`` is dissipated.
+  the belt slides over the whole arc: ``g_i' = -sign(dF) v_r r((|dF| - C) / C_0)``, r the ramp
+  max(x, 0) rounded (C1) over 0.1 %, ``C_0 = T_0 (exp(mu' theta) - 1)`` the arc's capacity at
+  the installation tension T_0.  The sliding arc transmits ``C + C_0 |g'| / v_r``: v_r
+  (``belt.slip_speed``, m/s) is the regularisation, a linear rise of the friction force with the
+  sliding speed that makes the law smooth and the slip state an ODE rather than a
+  complementarity problem; the scale C_0 is fixed, so a span that goes slack (C -> 0) leaves the
+  arc a finite, viscous grip rather than an infinitely stiff one.  What it changes is measured
+  in tests/test_belt_slip.py and its cost in benchmarks/bench_belt_slip.py.  The friction power
+  ``-dF g'`` is dissipated.
 
 Limits: rotational model only (the hybrid model's arcs are Eulerian contacts without their
-own belt material); the wrap is the installed one (an arm swing changes it a little);
-belt damping acts on the spans' kinematic stretching rate only.  Units: SI.
+own belt material); the wrap is the installed one (an arm swing changes it a little); the
+friction law sees the spans' elastic forces (belt damping acts on their whole stretching rate,
+the slip's included); the wrapped belt's inertia stays with its pulley (about 1 % of a small
+pulley's) while it slides.  Units: SI.
 """
 
 from __future__ import annotations
@@ -46,8 +50,9 @@ import numpy as np
 from beltjax import friction
 from beltjax.scene import Scene
 
-#: the dead zone's rounding, as a fraction of the capacity
-ROUNDING = 1e-2
+#: the ramp's rounding, as a fraction of the installed capacity C_0 (a sliding arc carries at most
+#: half of it beyond C + C_0 |g'| / v_r; it costs no steps: the slope stays below 1 / C_0)
+ROUNDING = 1e-3
 
 
 def n_states(scene: Scene) -> int:
@@ -103,11 +108,10 @@ def length_offsets(z, n: int):
     return end - start
 
 
-def dead_zone(x, width=ROUNDING):
-    """sign(x) max(|x| - 1, 0), rounded to C1 over |x| in [1, 1 + width] (-)."""
-    a = jnp.abs(x) - 1.0
-    inner = jnp.where(a > 0, a, 0.0) ** 2 / (2 * width)
-    return jnp.sign(x) * jnp.where(a > width, a - 0.5 * width, inner)
+def ramp(x, width=ROUNDING):
+    """max(x, 0), rounded to C1 over x in [0, width] (-)."""
+    inner = jnp.where(x > 0, x, 0.0) ** 2 / (2 * width)
+    return jnp.where(x > width, x - 0.5 * width, inner)
 
 
 def capacities(forces, scene: Scene, wrap):
@@ -120,15 +124,15 @@ def capacities(forces, scene: Scene, wrap):
     return low * jnp.expm1(mu * wrap)
 
 
-def rates(forces, stretches, rim_speeds, scene: Scene, wrap):
+def rates(forces, stretches, rim_speeds, scene: Scene, wrap, tension):
     """Slip rates (m/s) (g', u'), (2n,): forces (n,) N each span's force on the pulleys (span
     i leaves entry i), stretches (n,) the spans' l / L0, rim_speeds (n,) m/s along the belt's
-    travel, wrap (n,) rad (see the module docstring)."""
+    travel, wrap (n,) rad, tension the installation tension T_0 (N) (see the module docstring)."""
     f_in = jnp.roll(forces, 1)
-    cap = capacities(forces, scene, wrap)
-    # a slack arc (no force on either side) holds nothing: a tiny capacity keeps the ratio finite
-    cap = jnp.maximum(cap, 1e-6)
-    g_dot = 0.0 - scene.belt.slip_speed * dead_zone((f_in - forces) / cap)  # (no -0.0 where it holds)
+    d_f = f_in - forces
+    c0 = tension * jnp.expm1(friction.effective_coefficients(scene) * wrap)
+    slide = scene.belt.slip_speed * ramp((jnp.abs(d_f) - capacities(forces, scene, wrap)) / c0)
+    g_dot = 0.0 - jnp.sign(d_f) * slide  # (no -0.0 where it holds)
     lam_in = jnp.roll(stretches, 1)
     u_dot = jnp.maximum(rim_speeds + g_dot, 0.0) * (stretches / lam_in - 1.0)
     return jnp.concatenate([g_dot, u_dot])

@@ -25,7 +25,8 @@ def transport_speed(scene: Scene, inst: Installation, speed):
     return speed / inst.stretch
 
 
-def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, rigid_only=False, slip=None):
+def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, rigid_only=False, slip=None,
+                slip_rate=None):
     """Full coordinates and what the reduced equations need of them, at (q_i, q_i', t).
 
     Returns (q, v, gamma, J, F): q = Phi(q_i, t) and its rate v; gamma = d(J q_i')/dt at
@@ -34,12 +35,14 @@ def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None,
     map without time); with a time t (s) the belt speed and its rate follow
     :func:`belt_travel` and the damping effects and loads act.  rigid_only: J holds only
     the columns of the rigid coordinates, ``J[:, :n_rigid]`` (the span columns are the
-    constant selection of :func:`span_coordinate_index`).  slip: the belt's slip states (m,
-    :mod:`beltjax.drive.belt_slip`), held at this instant (their rates reach no inertia).
+    constant selection of :func:`span_coordinate_index`).  slip, slip_rate: the belt's slip
+    states (m) and their rates (m/s) (:mod:`beltjax.drive.belt_slip`, a transient's): the span
+    nodes' rates carry the slip's (the belt's damping sees them; they reach no inertia).
     """
     if rigid_only:
         nr = n_rigid(scene)
-        q, v, gamma, _, F = _full_motion(qi, qi_dot, scene, inst, speed, t, skip_jacobian=True, slip=slip)
+        q, v, gamma, _, F = _full_motion(qi, qi_dot, scene, inst, speed, t, skip_jacobian=True, slip=slip,
+                                         slip_rate=slip_rate)
         steady = t is None
         tt = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
         rest = qi[nr:]
@@ -48,14 +51,20 @@ def full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None,
             return full_coordinates(jnp.concatenate([xr, rest]), scene, inst, t=None if steady else tt, slip=slip)
 
         return q, v, gamma, jax.jacfwd(phi_r)(qi[:nr]), F
-    return _full_motion(qi, qi_dot, scene, inst, speed, t, slip=slip)
+    return _full_motion(qi, qi_dot, scene, inst, speed, t, slip=slip, slip_rate=slip_rate)
 
 
-def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, skip_jacobian=False, slip=None):
+def _full_motion(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, t=None, skip_jacobian=False, slip=None,
+                 slip_rate=None):
     steady = t is None
     t = jnp.zeros((), dtype=qi.dtype) if steady else jnp.asarray(t, dtype=qi.dtype)
     one = jnp.zeros_like(t) if steady else jnp.ones_like(t)  # the time's tangent
-    phi = lambda x, tt: full_coordinates(x, scene, inst, t=None if steady else tt, slip=slip)  # noqa: E731
+    t0 = t
+
+    def phi(x, tt):
+        z = slip if slip is None or slip_rate is None else slip + (tt - t0) * slip_rate
+        return full_coordinates(x, scene, inst, t=None if steady else tt, slip=z)
+
     rate = lambda x, tt: jax.jvp(phi, (x, tt), (qi_dot, one))[1]  # noqa: E731
     q, v = jax.jvp(phi, (qi, t), (qi_dot, one))
     if spans_of(scene).massive:
@@ -226,15 +235,19 @@ def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedM
     fx = effects_of(scene)
     cc = fx.transport_speed(c)
     rate = jnp.sum(J_l * qi_dot, axis=1) if not steady and "belt_damping" in fx else None
+    z_dot = None
+    if slip is not None:  # the friction law sees the spans' elastic forces
+        N_el = jax.vmap(lambda l_, L0_: bar_axial_force(l_, None, L0_, scene, cc))(l, L0)
+        rims = jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii * B_dot[:n, 2]
+        z_dot = belt_slip.rates(N_el, l / L0, rims, scene, inst.wrap, inst.tension)
+        if rate is not None:  # the belt's damping acts on its whole stretching rate, slip included
+            rate = rate + belt_slip.length_offsets(z_dot, n)
     N = jax.vmap(lambda l_, r_, L0_: bar_axial_force(l_, r_, L0_, scene, cc),
                  in_axes=(0, None if rate is None else 0, 0))(l, rate, L0)
     F_b = body_forces(B, scene, inst, None if steady else B_dot, None if steady else tt).reshape(-1)
     F_i = _small_matmul_tn(J_b, F_b - rm.m_body * gamma_b) - _small_matmul_tn(J_l, N)
     acc = _small_spd_solve(_small_matmul_tn(J_b, rm.m_body[:, None] * J_b), F_i)
-    if slip is None:
-        return acc
-    rims = jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii * B_dot[:n, 2]
-    return acc, belt_slip.rates(N, l / L0, rims, scene, inst.wrap)
+    return acc if slip is None else (acc, z_dot)
 
 
 #: largest rigid block solved by the unrolled Gauss-Jordan elimination of :func:`_small_spd_solve`

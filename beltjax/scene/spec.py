@@ -63,7 +63,8 @@ class Belt(eqx.Module):
     groove_angle_deg (deg): a V or ribbed belt's groove angle (its wedge raises the friction
     of the pulleys it wraps with its ribs to mu / sin(angle / 2)), or None (a flat belt);
     slip_speed (m/s, effect ``belt_slip``): the gross-slip law's regularisation, the sliding
-    speed at which an arc carries twice its capstan capacity (:mod:`beltjax.drive.belt_slip`).
+    speed at which an arc carries its capstan capacity at the installation tension beyond its
+    capacity (:mod:`beltjax.drive.belt_slip`).
     """
 
     EA: jax.Array
