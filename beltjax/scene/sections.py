@@ -128,7 +128,7 @@ def _parse_belt(data, source) -> Belt:
     CA = _num(t, "CA", "belt", required=False, default=0.0)
     mu = _num(t, "friction_coefficient", "belt", required=False)
     groove = _num(t, "groove_angle_deg", "belt", required=False)
-    slip = _num(t, "slip_speed", "belt", required=False, default=10.0)
+    slip = _num(t, "slip_speed", "belt", required=False, default=100.0)
     return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA),
                 friction_coefficient=_arr(mu), groove_angle_deg=_arr(groove), slip_speed=_arr(slip))
 

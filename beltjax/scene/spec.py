@@ -75,7 +75,7 @@ class Belt(eqx.Module):
     CA: jax.Array
     friction_coefficient: jax.Array | None = None
     groove_angle_deg: jax.Array | None = None
-    slip_speed: jax.Array = 10.0
+    slip_speed: jax.Array = 100.0
 
 
 class Pulley(eqx.Module):
