@@ -171,6 +171,11 @@ def test_sweep_response_output_equals_the_response(tmp_path):
         assert abs(cols["arm_p2p_deg"][i] - one.channel("arm_angle_deg", "p2p")[0]) < 1e-7
         assert np.allclose(res["response_span_p2p_N"][i], one.channel("span_tensions_N", "p2p")[0], rtol=1e-7)
     assert abs(cols["arm_p2p_deg"][0] - cols["arm_p2p_deg"][1]) > 0.1  # the tolerances move the arm's motion
+    # a traced scene cannot give the response's settings (its cycle is read from its values): a clear error
+    from beltjax.sweep.batch import case_outputs
+
+    with pytest.raises(ValueError, match="needs its settings"):
+        jax.jit(lambda s: case_outputs(s, {}, ("response",)))(sc)
 
 
 def test_gradient_over_speed_and_optimize_arm_motion():

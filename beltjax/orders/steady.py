@@ -127,9 +127,11 @@ def _settling(y_early, y_late, n: int, dt, creeping=None):
     return jnp.maximum(part(y_early[:, :n] + drift, y_late[:, :n]), part(y_early[:, n:], y_late[:, n:]))
 
 
-def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -> dict:
+def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, solved=None) -> dict:
     """The periodic steady state of ``scene`` with ``values`` {path: value} set, drive pulley at
     ``rpm`` (rev/min), after at least ``settle_s`` (s) of transient (pure JAX: jit, vmap, grad).
+    ``solved``: (q_i, installation, converged) of that scene's operating point at ``rpm`` when
+    the caller has it (a sweep's case), else it is solved here.
 
     Returns: per channel of :data:`CHANNELS` the scene has, ``{channel}:{stat}`` for each of
     :data:`STATS` ((k,) or () in the channel's units) and ``{channel}:orders`` ((k, H) or (H,):
@@ -144,10 +146,12 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -
     path = speed_path(scene)
     sign = jnp.where(parameters.get_value(scene, path) < 0, -1.0, 1.0)  # the scene's sense of rotation
     sc = parameters.set_values(scene, {**values, path: sign * jnp.abs(rpm)})
-    inst = statics.install(sc)
     v = drive.belt_speed(sc)
     loaded = drive.lasting_loads(sc)
-    qi, inst, (conv, _, _) = statics.equilibrium(sc, inst, speed=v, loaded=loaded)
+    if solved is None:
+        qi, inst, (conv, _, _) = statics.equilibrium(sc, statics.install(sc), speed=v, loaded=loaded)
+    else:
+        qi, inst, conv = solved
     torque = drive.drive_torque(qi, sc, inst, v, loaded)
     qi = isolator_wind_up(sc, inst, qi, torque)
     y0 = start_vector(sc, inst, qi, jnp.zeros_like(qi))

@@ -50,7 +50,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
     campbell_owner (the frequencies are then the lowest ``track``, sorted).  ``response``: the
     periodic steady state at the case's drive speed after ``settle_s`` s, with the static
-    :class:`beltjax.orders.Settings` ``response`` (default: :func:`beltjax.orders.for_scene`)
+    :class:`beltjax.orders.Settings` ``response`` (default, outside jit only:
+    :func:`beltjax.orders.for_scene`)
     (:func:`beltjax.orders.steady_case`): response_arm_p2p_deg, response_span_min_N,
     response_span_max_N, response_span_p2p_N (per span), response_hub_max_N (per bearing),
     response_min_slip_margin (per arc with a coefficient), response_settling.
@@ -114,8 +115,15 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         from beltjax.orders import SETTLE_TOL, for_scene, steady_case
         from beltjax.orders.steady import speed_path
 
-        r = steady_case(scene, values, parameters.get_value(sc, speed_path(sc)), settle_s,
-                        response if response is not None else for_scene(scene))
+        if response is None:  # its cycle and top order are read from the scene's values: not under jit
+            try:
+                response = for_scene(scene)
+            except jax.errors.ConcretizationTypeError:
+                raise ValueError("case_outputs: the 'response' output of a traced scene needs its settings: pass "
+                                 "response=beltjax.orders.for_scene(scene), computed outside the traced function"
+                                 ) from None
+        r = steady_case(scene, values, parameters.get_value(sc, speed_path(sc)), settle_s, response,
+                        solved=(qi, inst, conv))  # the operating point solved above
         if sc.tensioner is not None:
             res["response_arm_p2p_deg"] = r["arm_angle_deg:p2p"]
         res["response_span_min_N"] = r["span_tensions_N:min"]
