@@ -45,7 +45,6 @@ pulley's) while it slides.  Units: SI.
 from __future__ import annotations
 
 import jax.numpy as jnp
-import numpy as np
 
 from beltjax import friction
 from beltjax.scene import Scene
@@ -83,7 +82,6 @@ def creep_start(scene: Scene, inst, qi, qd):
 
     if n_states(scene) == 0 or drive.travel_follows_drive(scene):
         return qd
-    n = len(scene.route.order)
     lam = drive.span_lengths(qi, scene, inst) / drive.element_length(scene, inst)
     d = drive.drive_pulley(scene)
     lam_in = jnp.roll(lam, 1)
