@@ -14,6 +14,8 @@ loaded):
 - energy: the work of the crank's drive equals the load's work, the friction loss and the
   change of kinetic and elastic energy, through the onset of slip (the kinetic energy with the
   model's inertia: the alternator carries its wrapped belt, 1 % of its own);
+- gradients in the friction coefficient and the regularisation through the sliding law and the
+  solver, against central differences;
 - without the effect nothing slides, and its refusals.
 """
 
@@ -184,3 +186,35 @@ def test_nothing_slides_without_the_effect_and_its_refusals():
     assert e.value.key == "belt.friction_coefficient"
     with pytest.raises(SceneError, match="belt_slip"):
         loads_scene(_bench(belt="slip_speed = 5.0", effects="[]"))
+
+
+def test_gradient_through_sliding_matches_finite_differences():
+    """Gradients reach the friction coefficient and the regularisation through the sliding law
+    and the solver: d(the alternator's speed after 40 ms of gross slip)/d(mu, slip_speed) by
+    reverse mode through statics, the slip states and Dopri8 against central differences."""
+    import diffrax
+
+    from beltjax import parameters
+    from beltjax.transient import start_vector, vector_field
+
+    sc0 = loads_scene(_bench(torque=14.0, belt="slip_speed = 10.0"))  # above the 12.5 N m limit
+
+    def speed(p):
+        sc = drive.canonical(parameters.set_values(sc0, {"belt.friction_coefficient": p[0], "belt.slip_speed": p[1]}))
+        v = drive.belt_speed(sc)
+        qi, inst, _ = statics.equilibrium(sc, statics.install(sc), speed=v, loaded=True)
+        y0 = start_vector(sc, inst, qi, jnp.zeros_like(qi))
+        sol = diffrax.diffeqsolve(diffrax.ODETerm(vector_field(sc, inst)), diffrax.Dopri8(), 0.0, 0.04, 1e-4, y0,
+                                  stepsize_controller=diffrax.PIDController(rtol=1e-9, atol=1e-12), max_steps=20000)
+        return sol.ys[-1, qi.shape[0]]  # the alternator's rotation rate beyond its nominal rolling (rad/s)
+
+    p0 = jnp.array([MU, 10.0])
+    g = np.asarray(jax.jit(jax.grad(speed))(p0))
+    f = jax.jit(speed)
+    assert abs(float(f(p0))) > 10.0  # it falls behind the belt (by 22 rad/s)
+    for k, h in enumerate((1e-5, 1e-3)):
+        e = np.zeros(2)
+        e[k] = h
+        fd = (float(f(p0 + e)) - float(f(p0 - e))) / (2 * h)
+        assert g[k] == pytest.approx(fd, rel=1e-4), (k, g[k], fd)
+        assert abs(fd) > 1e-3
