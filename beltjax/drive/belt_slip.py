@@ -28,8 +28,8 @@ pulleys' torques, follow the slip; nothing else changes.  Their rates:
   the belt slides over the whole arc: ``g_i' = -sign(dF) v_r r((|dF| - C) / C_0)``, r the ramp
   max(x, 0) rounded (C1) over 0.1 %, ``C_0 = T_0 (exp(mu' theta) - 1)`` the arc's capacity at
   the installation tension T_0.  The sliding arc transmits ``C + C_0 |g'| / v_r``: v_r
-  (``belt.slip_speed``, m/s) is the regularisation, a linear rise of the friction force with the
-  sliding speed that makes the law smooth and the slip state an ODE rather than a
+  (``belt.slip_speed``, m/s, default 100) is the regularisation, a linear rise of the friction
+  force with the sliding speed that makes the law smooth and the slip state an ODE rather than a
   complementarity problem; the scale C_0 is fixed, so a span that goes slack (C -> 0) leaves the
   arc a finite, viscous grip rather than an infinitely stiff one.  What it changes is measured
   in tests/test_belt_slip.py and its cost in benchmarks/bench_belt_slip.py.  The friction power
