@@ -44,8 +44,8 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     drv0 = jnp.zeros(n)
     z_dot = None
     if z is not None:  # the slip rates of the equations (:func:`beltjax.drive.bar_accelerations`)
-        rm = drive.ReducedMass(M_full, None, None, jnp.diagonal(M_full)[drive.n_span_coordinates(scene):])
-        z_dot = drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t, slip=z)[1]
+        z_dot = drive.reduced_accelerations(qi, qd, scene, inst, drive.reduced_mass(scene, inst, M_full), t=t,
+                                            slip=z)[1]
     q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t, slip=z, slip_rate=z_dot)
     ti = drive.travel_inertia(q, v, gamma, scene, inst, t)
     qdd = jnp.linalg.solve(*drive.with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))

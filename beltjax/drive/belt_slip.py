@@ -47,6 +47,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from beltjax import friction
+from beltjax.drive.effects import effects_of
 from beltjax.scene import Scene
 
 #: the ramp's rounding, as a fraction of the installed capacity C_0 (a sliding arc carries at most
@@ -56,8 +57,6 @@ ROUNDING = 1e-3
 
 def n_states(scene: Scene) -> int:
     """Slip states of ``scene``: 2 per route entry with ``belt_slip`` listed, else 0."""
-    from beltjax.drive.effects import effects_of
-
     return 2 * len(scene.route.order) if "belt_slip" in effects_of(scene) else 0
 
 
@@ -88,9 +87,16 @@ def creep_start(scene: Scene, inst, qi, qd):
     v = drive.belt_speed(scene) * (lam_in / lam_in[d] - 1.0)  # each rim's speed beyond the nominal rolling
     rate = v / (jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii)
     free = [i for i, f in enumerate(drive.is_free(scene)) if f]
-    rotors = [free.index(i) for i in drive.drive_of(scene).rotors] if scene.decouplers else []
-    out = rate[jnp.asarray(free, dtype=int)] if free else jnp.zeros(0, dtype=qi.dtype)
-    return qd.at[: len(free) + len(rotors)].set(jnp.concatenate([out, out[jnp.asarray(rotors, dtype=int)]]))
+    rows = free + list(drive.drive_of(scene).rotors)  # a rotor turns with its pulley
+    return qd.at[: rotations(scene)].set(rate[jnp.asarray(rows, dtype=int)])
+
+
+def rotations(scene: Scene) -> int:
+    """How many of q_i's first coordinates are rotations that creep (rad): the free pulleys',
+    then the decouplers' rotors' (:func:`beltjax.drive.kinematics.rotor_angles`)."""
+    from beltjax import drive
+
+    return sum(drive.is_free(scene)) + len(scene.decouplers)
 
 
 def node_shifts(z, n: int):
@@ -112,24 +118,15 @@ def ramp(x, width=ROUNDING):
     return jnp.where(x > width, x - 0.5 * width, inner)
 
 
-def capacities(forces, scene: Scene, wrap):
-    """Force difference (N) each arc carries without gross slip, (n,) route order: the smaller
-    span force (floored at 0) times exp(mu' theta) - 1; forces (n,) N (span i leaves entry i),
-    wrap (n,) rad."""
-    mu = friction.effective_coefficients(scene)
-    f_in = jnp.roll(forces, 1)
-    low = jnp.maximum(jnp.minimum(forces, f_in), 0.0)
-    return low * jnp.expm1(mu * wrap)
-
-
 def rates(forces, stretches, rim_speeds, scene: Scene, wrap, tension):
     """Slip rates (m/s) (g', u'), (2n,): forces (n,) N each span's force on the pulleys (span
     i leaves entry i), stretches (n,) the spans' l / L0, rim_speeds (n,) m/s along the belt's
     travel, wrap (n,) rad, tension the installation tension T_0 (N) (see the module docstring)."""
     f_in = jnp.roll(forces, 1)
     d_f = f_in - forces
-    c0 = tension * jnp.expm1(friction.effective_coefficients(scene) * wrap)
-    slide = scene.belt.slip_speed * ramp((jnp.abs(d_f) - capacities(forces, scene, wrap)) / c0)
+    gain = jnp.expm1(friction.effective_coefficients(scene) * wrap)  # exp(mu' theta) - 1
+    capacity = jnp.maximum(jnp.minimum(forces, f_in), 0.0) * gain  # C: the smaller span force (floored at 0)
+    slide = scene.belt.slip_speed * ramp((jnp.abs(d_f) - capacity) / (tension * gain))  # C_0 = T_0 gain
     g_dot = 0.0 - jnp.sign(d_f) * slide  # (no -0.0 where it holds)
     lam_in = jnp.roll(stretches, 1)
     u_dot = jnp.maximum(rim_speeds + g_dot, 0.0) * (stretches / lam_in - 1.0)

@@ -164,9 +164,7 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     ``slip`` (m, effect ``belt_slip``: :mod:`beltjax.drive.belt_slip`) it returns
     (q_i'', the slip rates m/s).
     """
-    if slip is not None:
-        return spans_of(scene).accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip=slip)
-    return spans_of(scene).accelerations(qi, qi_dot, scene, inst, rm, t, speed)
+    return spans_of(scene).accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip)
 
 
 def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):

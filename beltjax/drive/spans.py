@@ -100,8 +100,9 @@ class SpanModel(eqx.Module):
         length Le for ANCF spans; unlimited for bars)."""
         return np.inf
 
-    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0):
-        """The drive's reduced accelerations q_i'' (rad/s^2, m/s^2) with these spans."""
+    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
+        """The drive's reduced accelerations q_i'' (rad/s^2, m/s^2) with these spans; with the
+        belt's slip states ``slip`` (m, :mod:`beltjax.drive.belt_slip`), (q_i'', their rates m/s)."""
         raise NotImplementedError
 
 
@@ -173,9 +174,11 @@ class AncfSpans(SpanModel):
     def slide_limit(self, Le):
         return MAX_SLIDE_ELEMENTS * Le
 
-    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0):
+    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
         from beltjax.drive.equations import schur_accelerations
 
+        if slip is not None:  # (belt_slip.check refuses the effect on this fidelity)
+            raise NotImplementedError("belt slip states are built for the rotational model's bars")
         return schur_accelerations(qi, qi_dot, scene, inst, rm, t, speed)
 
 

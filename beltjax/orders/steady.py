@@ -193,7 +193,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     out["t_s"] = t_rec
     creeping = None
     if belt_slip.n_states(sc):  # the slip states drift, and so do the creeping pulleys' angles
-        creeping = jnp.zeros(n).at[: sum(free) + len(sc.decouplers)].set(1.0)
+        creeping = jnp.zeros(n).at[: belt_slip.rotations(sc)].set(1.0)
     out["settling"] = _settling(early[:, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
     out["converged"] = conv
     out["supercritical"] = critical.supercritical(sc, qi, inst, v).astype(jnp.float64)
