@@ -113,16 +113,17 @@ def span_coordinate_index(scene: Scene) -> np.ndarray:
 class ReducedMass(NamedTuple):
     """What the structured solve of :func:`reduced_accelerations` keeps of a drive (per run).
 
-    M_full: full mass matrix; M_s = M_full[idx] (rows of the span coordinates); chol: Cholesky
-    factor (lower) of the constant span block M_ss = M_full[idx][:, idx] (None without spans);
-    m_body: the diagonal of the bodies' block (:func:`body_masses`, kg, kg m^2); BC: the spans'
-    transport matrices when the belt's travel follows a free drive pulley
-    (:func:`span_transport_matrices`), else None.
+    M_full: full mass matrix (block diagonal: the spans' blocks, then the bodies' diagonal);
+    blocks: the spans' blocks (n spans, 4 (N+1), 4 (N+1)) (:func:`span_mass_blocks`); inv_ss:
+    the inverse of each span's block on its independent coordinates, (n, 4 N, 4 N), so that
+    M_ss^-1 is a batched product (None without span coordinates); m_body: the diagonal of the
+    bodies' block (:func:`body_masses`, kg, kg m^2); BC: the spans' transport matrices when the
+    belt's travel follows a free drive pulley (:func:`span_transport_matrices`), else None.
     """
 
     M_full: jax.Array
-    M_s: jax.Array | None
-    chol: jax.Array | None
+    blocks: jax.Array | None
+    inv_ss: jax.Array | None
     m_body: jax.Array
     BC: tuple | None = None
 
@@ -132,12 +133,32 @@ def reduced_mass(scene: Scene, inst: Installation, M_full=None) -> ReducedMass:
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
     ns = n_span_coordinates(scene)
     m_body = jnp.diagonal(M)[ns:]
-    idx = span_coordinate_index(scene)
-    if idx.size == 0:
+    if span_coordinate_index(scene).size == 0:
         return ReducedMass(M, None, None, m_body)
-    M_s = M[idx]
+    n, loc = len(scene.route.order), _span_local_index(scene)
+    P = ns // n
+    blocks = jnp.stack([M[s * P : (s + 1) * P, s * P : (s + 1) * P] for s in range(n)])
+    M_ss = blocks[:, loc][:, :, loc]
+    eye = jnp.broadcast_to(jnp.eye(loc.size, dtype=M.dtype), M_ss.shape)
+    inv_ss = jax.vmap(lambda A, I: jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(A), True), I))(M_ss, eye)
     BC = span_transport_matrices(scene, inst) if travel_follows_drive(scene) else None
-    return ReducedMass(M, M_s, jnp.linalg.cholesky(M_s[:, idx]), m_body, BC)
+    return ReducedMass(M, blocks, inv_ss, m_body, BC)
+
+
+def _span_local_index(scene: Scene) -> np.ndarray:
+    """Position of each independent span coordinate within its span's full coordinates."""
+    return spans_of(scene).coordinate_index(1)
+
+
+def _block_product(rm: ReducedMass, x):
+    """M_full @ x by its blocks (x: (n_full,) or (n_full, m)): the spans' blocks batched, the
+    bodies' diagonal."""
+    n, P = rm.blocks.shape[0], rm.blocks.shape[1]
+    ns = n * P
+    xs = x[:ns].reshape((n, P) + x.shape[1:])
+    spans = jnp.einsum("spq,sq...->sp...", rm.blocks, xs).reshape((ns,) + x.shape[1:])
+    body = rm.m_body.reshape((-1,) + (1,) * (x.ndim - 1)) * x[ns:]
+    return jnp.concatenate([spans, body])
 
 
 def _small_matmul_tn(A, B):
@@ -172,10 +193,14 @@ def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduce
     nr = n_rigid(scene)
     idx = span_coordinate_index(scene)
     q, v, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
-    M = rm.M_full
-    r = F - M @ gamma
-    F_r = J_r.T @ r
-    M_rr = J_r.T @ (M @ J_r)
+    if idx.size == 0:
+        M = rm.M_full
+        r = F - M @ gamma
+        M_rr, F_r = J_r.T @ (M @ J_r), J_r.T @ r
+    else:  # M is block diagonal: its products and the span block's inverse go by blocks
+        r = F - _block_product(rm, gamma)
+        MJ = _block_product(rm, J_r)
+        M_rr, F_r = J_r.T @ MJ, J_r.T @ r
     # a free drive pulley's travel: its coupling reaches only the rigid rows (k < n_rigid) and
     # the span rows' column k (S^T P = P[idx]); the span block M_ss stays constant
     ti = travel_inertia(q, v, gamma, scene, inst, t, rm.BC)
@@ -183,10 +208,12 @@ def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduce
     if idx.size == 0:
         return _small_spd_solve(M_rr, F_r)
     F_s = r[idx]
-    M_sr = rm.M_s @ J_r  # (n_span, n_rigid)
+    M_sr = MJ[idx]  # (n_span, n_rigid)
     if ti is not None:
         M_sr = M_sr.at[:, ti.k].add(ti.kappa * ti.P[idx])
-    X = jax.scipy.linalg.cho_solve((rm.chol, True), jnp.concatenate([M_sr, F_s[:, None]], axis=1))
+    n, k = rm.inv_ss.shape[0], rm.inv_ss.shape[1]
+    rhs = jnp.concatenate([M_sr, F_s[:, None]], axis=1).reshape(n, k, nr + 1)
+    X = jnp.einsum("sij,sjm->sim", rm.inv_ss, rhs).reshape(n * k, nr + 1)
     if nr == 0:
         return X[:, 0]
     S_c = M_rr - M_sr.T @ X[:, :nr]

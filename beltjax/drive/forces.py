@@ -38,13 +38,19 @@ def body_masses(scene: Scene, inst: Installation | None = None):
     return jnp.concatenate(vals + rotors + layout_of(scene).masses(scene))
 
 
-def full_mass_matrix(scene: Scene, inst: Installation):
-    """Block-diagonal mass matrix of the full coordinates (kg, kg m^2)."""
+def span_mass_blocks(scene: Scene, inst: Installation):
+    """The spans' blocks of the full mass matrix, (n spans, 4 (N+1), 4 (N+1)) (kg)."""
     model = spans_of(scene)
     Le = element_length(scene, inst)
-    blocks = [model.mass_block(scene.belt.rhoA, Le[s]) for s in range(len(scene.route.order))]
-    blocks.append(jnp.diag(body_masses(scene, inst)))
-    return jax.scipy.linalg.block_diag(*blocks)
+    blocks = jax.vmap(lambda le: model.mass_block(scene.belt.rhoA, le))(Le)
+    n, P = Le.shape[0], 4 * (model.elements + 1)
+    return jnp.broadcast_to(blocks, (n, P, P))
+
+
+def full_mass_matrix(scene: Scene, inst: Installation):
+    """Block-diagonal mass matrix of the full coordinates (kg, kg m^2): the spans' blocks
+    (:func:`span_mass_blocks`), then the bodies' diagonal (:func:`body_masses`)."""
+    return jax.scipy.linalg.block_diag(*span_mass_blocks(scene, inst), jnp.diag(body_masses(scene, inst)))
 
 
 def span_potential(e, s: int, scene: Scene, inst: Installation, c=0.0):
@@ -164,12 +170,15 @@ def full_forces(q, q_dot, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, t=
     E, B = split_full(q, scene)
     Ed, Bd = split_full(q_dot, scene)
     dyn = t is not None
-    fs = [span_forces(E[s], Ed[s], s, scene, inst, c, c_dot, dissipative=dyn) for s in range(E.shape[0])]
+    model, fx = spans_of(scene), effects_of(scene)
+    # every span at once (one traced program, whatever the number of spans; they differ only in Le)
+    fs = jax.vmap(lambda e, ed, le: model.forces(e, ed, scene.belt, le, c, c_dot, fx, dyn))(
+        E, Ed, element_length(scene, inst))
     if dyn and scene.span_loads:
         names = span_names(scene)
         for load in scene.span_loads:
             s = names.index(load.span)
             tan = inst.span_tangent[s]
             normal = jnp.stack([-tan[1], tan[0]])
-            fs[s] = fs[s].at[4 * load.node : 4 * load.node + 2].add(span_load_force(load, t) * normal)
-    return jnp.concatenate(fs + [body_forces(B, scene, inst, Bd, t).reshape(-1)])
+            fs = fs.at[s, 4 * load.node : 4 * load.node + 2].add(span_load_force(load, t) * normal)
+    return jnp.concatenate([fs.reshape(-1), body_forces(B, scene, inst, Bd, t).reshape(-1)])

@@ -33,16 +33,12 @@ def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
     route order (entries of free pulleys ignored).
     """
     rigid, _ = _split(qi, scene)
-    free = is_free(scene)
+    free = np.asarray(is_free(scene), dtype=bool)
     driven = jnp.broadcast_to(jnp.asarray(driven_angle, dtype=qi.dtype), (len(free),))
-    k, phis = 0, []
-    for i, f in enumerate(free):
-        if f:
-            phis.append(rigid[k])
-            k += 1
-        else:
-            phis.append(driven[i])
-    return jnp.stack(phis), layout_of(scene).arm_angle(rigid, inst)
+    # the k-th free pulley takes rigid[k]: one gather and one select, not a scalar per pulley
+    k = np.clip(np.cumsum(free) - 1, 0, None)
+    phis = jnp.where(free, rigid[k] if rigid.size else driven, driven)
+    return phis, layout_of(scene).arm_angle(rigid, inst)
 
 
 def belt_travel(scene: Scene, t):
@@ -106,10 +102,10 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     if slip is not None and slip.size:
         s0, s1 = belt_slip.node_shifts(slip, len(scene.route.order))
         start, end = start + s0[:, None] * t_hat, end + s1[:, None] * t_hat
-    parts = [model.nodes(start[s], end[s], t_hat[s], None if spans is None else spans[s], inst.stretch)
-             for s in range(len(scene.route.order))]
-    return jnp.concatenate(parts + [_body_coordinates(phi, theta, centers, scene, inst, t, shift,
-                                                      rotor_angles(qi, scene))])
+    nodes = jax.vmap(model.nodes, in_axes=(0, 0, 0, None if spans is None else 0, None))(
+        start, end, t_hat, spans, inst.stretch)  # every span at once
+    return jnp.concatenate([nodes.reshape(-1), _body_coordinates(phi, theta, centers, scene, inst, t, shift,
+                                                                 rotor_angles(qi, scene))])
 
 
 def rotor_angles(qi, scene: Scene):
@@ -157,7 +153,7 @@ def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=N
     rolling = 0.0 if t is None else senses * belt_travel(scene, t) / inst.radii
     angle = phi + rolling
     pos = effects_of(scene).body_positions(centers, angle, scene, inst)  # unbalance: centres of mass
-    bodies = [jnp.concatenate([pos[i], angle[i][None]]) for i in range(len(scene.route.order))]
+    bodies = [jnp.concatenate([pos, angle[:, None]], axis=1).reshape(-1)]
     for j, i in enumerate(drive_of(scene).rotors):
         rot = rotors[j] + (0.0 if t is None else rolling[i])
         bodies.append(jnp.concatenate([centers[i], rot[None]]))
