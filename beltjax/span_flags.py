@@ -88,10 +88,47 @@ def slip_warning(record: dict) -> str:
             f"{record['min_slip_margin']:.3g}): the capstan limit is exceeded, and this model's belt does not slip")
 
 
+#: the hybrid model's end nodes sit off their tangent points by the belt's axial perturbation
+#: displacement there; beyond this fraction of a span's length the run flags the span
+END_SLIDE_FRACTION = 0.05
+
+
+def displaced_span_ends(t, slides, lengths, names) -> list[dict]:
+    """Spans of a hybrid run whose end nodes sat more than :data:`END_SLIDE_FRACTION` of the
+    span's length from their tangent points at an output sample of t (s).
+
+    slides (nt, n, 2) m: each span's start and end node offsets along the span
+    (:func:`beltjax.drive.end_slides`); lengths (n,) m.  The model carries the belt's axial
+    perturbation displacement at a span's ends by sliding its end nodes along the span line: a
+    slide along a straight span leaves tensions and pulley motion unchanged
+    (tests/test_transient.py), but the span's transverse boundary, hence its free length, is off
+    by as much.  Records as :func:`slack_spans` with max_end_slide_mm and fraction_of_span.
+    """
+    frac = np.max(np.abs(np.asarray(slides)), axis=2) / np.asarray(lengths)[None, :]
+    out = span_episodes(t, END_SLIDE_FRACTION - frac, names, "_margin")
+    for r in out:
+        j = list(names).index(r["span"])
+        del r["_margin"]
+        r.update(max_end_slide_mm=1e3 * float(np.max(np.abs(np.asarray(slides)[:, j]))),
+                 fraction_of_span=float(np.max(frac[:, j])))
+    return out
+
+
+def end_slide_warning(record: dict) -> str:
+    """One line saying that (and when) a hybrid span's end nodes sat far from its tangent points."""
+    return (f"warning: span {record['span']!r}: its end nodes sat up to {record['max_end_slide_mm']:.3g} mm "
+            f"({100 * record['fraction_of_span']:.3g} % of the span) from the tangent points ({record['samples']} output "
+            f"samples between t = {record['t_first_s']:.4g} and {record['t_last_s']:.4g} s): the hybrid model carries "
+            "the belt's axial displacement there by sliding them along the span, so the span's free length and its "
+            "transverse motion are approximate by that much (tensions and pulley motion are not affected)")
+
+
 def run_warnings(meta: dict) -> list[str]:
     """The one-line warnings of a run, from its meta: slack spans, spans past the critical
-    speed (:func:`slack_warning`), arcs past their capstan limit (:func:`slip_warning`) and
-    forcing the step resolves poorly (:func:`beltjax.excitation.warning`)."""
+    speed (:func:`slack_warning`), arcs past their capstan limit (:func:`slip_warning`), hybrid
+    spans whose ends slid far (:func:`end_slide_warning`) and forcing the step resolves poorly
+    (:func:`beltjax.excitation.warning`)."""
     lines = [slack_warning(r) for k in ("slack_spans", "supercritical_spans") for r in meta.get(k, [])]
     lines += [slip_warning(r) for r in meta.get("slipping_pulleys", [])]
+    lines += [end_slide_warning(r) for r in meta.get("displaced_span_ends", [])]
     return lines + [excitation.warning(r) for r in meta.get("excitation_warnings", [])]

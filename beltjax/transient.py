@@ -47,7 +47,7 @@ import numpy as np
 from beltjax import drive, excitation, signals, statics
 from beltjax.drive import belt_slip, couplings
 from beltjax.drive.belt_slip import split_state
-from beltjax.span_flags import run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
+from beltjax.span_flags import displaced_span_ends, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
@@ -296,28 +296,6 @@ class SimulationResult:
 #: largest slide of a span end node from its tangent point, in elements (hybrid model)
 
 
-def _check_slide(scene: Scene, inst, rotations_deg, t) -> None:
-    """The hybrid model's end nodes slide by s R phi - x from their tangent points (x: the belt's
-    travel beyond the nominal one, that of a free drive pulley, else 0): a pulley must stay a
-    perturbation of the belt's travel, or the spans leave the pulleys."""
-    sr = np.asarray(scene.route.senses)[None, :] * np.asarray(inst.radii)[None, :]
-    rim = sr * np.radians(rotations_deg)
-    if drive.travel_follows_drive(scene):
-        d = drive.drive_pulley(scene)
-        rim = rim - rim[:, d : d + 1]
-    slide = np.abs(rim)
-    Le = float(np.min(np.asarray(drive.element_length(scene, inst))))
-    k = np.unravel_index(np.argmax(slide), slide.shape)
-    if slide[k] > drive.spans_of(scene).slide_limit(Le):
-        name = scene.route.order[k[1]]
-        raise TransientError(
-            f"pulley {name!r} turned {np.degrees(slide[k] / float(inst.radii[k[1]])):.3g} deg away from the belt's travel by "
-            f"t = {t[k[0]]:.4g} s (rim slide {1e3 * slide[k]:.3g} mm > half an element, {1e3 * Le / 2:.3g} mm): "
-            "the model has no slip: a driven pulley's speed_rpm / acceleration must match the belt's motion, "
-            "and a free pulley must not be torqued beyond what the belt can carry"
-        )
-
-
 def _friction_channels(scene: Scene, inst, pulley_forces, t, chans: dict, cols: dict) -> list[dict]:
     """Add the friction each arc needs (capstan law, :mod:`beltjax.friction`) and, where the scene
     gives a friction coefficient, the slip margins to the channels; the pulleys whose margin
@@ -474,7 +452,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     for k, v in chans.items():
         if not np.all(np.isfinite(v)):
             raise TransientError(f"output {k} is not finite: the run diverged")
-    _check_slide(scene, inst, chans["pulley_rotations_deg"], t)
+    slides = chans.pop("_end_slides_m", None)
     slipping = _friction_channels(scene, inst, pulley_forces, t, chans, cols)
     meta = dict(
         fidelity=scene.model.fidelity,
@@ -493,6 +471,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         slack_spans=slack_spans(t, chans["span_tensions_N"], cols["span_tensions_N"]),
         supercritical_spans=supercritical_spans(t, pulley_forces, cols["span_forces_N"], chans["belt_speed_m_s"]),
         slipping_pulleys=slipping,
+        displaced_span_ends=[] if slides is None else displaced_span_ends(t, slides, np.asarray(inst.span_length),
+                                                                          cols["span_tensions_N"]),
         excitation_warnings=[*forcing.warnings,
                              *excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed)],
     )

@@ -42,14 +42,14 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
 
     shift0 = jnp.zeros((nrp, 2))
     drv0 = jnp.zeros(n)
-    z_dot = None
-    if z is not None:  # the slip rates of the equations (:func:`beltjax.drive.bar_accelerations`)
-        z_dot = drive.reduced_accelerations(qi, qd, scene, inst, drive.reduced_mass(scene, inst, M_full), t=t,
-                                            slip=z)[1]
-    q, v, gamma, J, F = drive.full_motion(qi, qd, scene, inst, t=t, slip=z, slip_rate=z_dot)
+    # q_i'' (and the slip rates) by the equations' own structured solve; J = [J_r | S] with
+    # the constant selection S of the span coordinates (:func:`beltjax.drive.span_coordinate_index`)
+    acc = drive.reduced_accelerations(qi, qd, scene, inst, drive.reduced_mass(scene, inst, M_full), t=t, slip=z)
+    qdd, z_dot = acc if z is not None else (acc, None)
+    q, v, gamma, J_r, F = drive.full_motion(qi, qd, scene, inst, t=t, slip=z, slip_rate=z_dot, rigid_only=True)
     ti = drive.travel_inertia(q, v, gamma, scene, inst, t)
-    qdd = jnp.linalg.solve(*drive.with_travel_inertia(J.T @ M_full @ J, J.T @ (F - M_full @ gamma), J, ti))
-    a = J @ qdd + gamma
+    nr = J_r.shape[1]
+    a = (J_r @ qdd[:nr] + gamma).at[drive.span_coordinate_index(scene)].add(qdd[nr:])
     if ti is not None:  # the rhoA dc/dt force of the travel's own acceleration
         F = F - ti.kappa * qdd[ti.k] * ti.P
     c = drive.transient_transport_speed(scene, inst, v, t)[0]
@@ -91,6 +91,8 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     if z is not None:  # the belt's sliding over each rim (gross slip, creep) and its friction power
         out["slip_speeds_m_s"], out["creep_speeds_m_s"] = z_dot[:n], z_dot[n:]
         out["friction_power_W"] = belt_slip.dissipation(forces, z_dot, n)
+    if drive.spans_of(scene).massive:  # the end nodes' offsets from the tangent points (not an output channel)
+        out["_end_slides_m"] = drive.end_slides(qi, scene, inst, t)
     nodes = output_nodes(scene)
     if nodes:
         disp = []

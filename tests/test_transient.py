@@ -331,3 +331,71 @@ def test_slack_spans_are_found_and_named():
     line = transient.slack_warning(r)
     assert "\n" not in line and "'b-a'" in line and "-500 N" in line
     assert transient.slack_spans(t, T[:, :1], ["a-b"]) == []
+
+
+def test_hybrid_loop_turned_by_two_elements_moves_nothing():
+    """The two-pulley bench, hybrid, both pulleys free, the alternator released from 2 deg: the
+    whole loop turned on top by two elements of belt (the spans' end nodes follow the belt's
+    travel with the free drive pulley) vibrates as the unturned one to round-off, and no span
+    is flagged (drive.end_slides are taken relative to that travel)."""
+    from pathlib import Path
+
+    from beltjax.scene import loads_scene
+
+    text = (Path(__file__).resolve().parents[1] / "scenes" / "sim_two_pulley_release.toml").read_text()
+    text = text.replace('fidelity = "rotational"', 'fidelity = "ancf"\nelements_per_span = 6')
+    Rc, Ra, L = 0.1015, 0.0375, 0.6766  # m: crank and alternator radii, span length
+    runs = {}
+    for u in (0.0, 2 * L / 6):  # the belt moved by u along its (clockwise) travel: both pulleys turn with it
+        rot = f"rotation_deg = {{ alternator = {2.0 - np.degrees(u / Ra)}, crank = {-np.degrees(u / Rc)} }}"
+        runs[u] = transient.simulate(loads_scene(text.replace("rotation_deg = { alternator = 2.0 }", rot)), 0.03)
+    base, turned = runs.values()
+    rel = lambda r: r.channels["pulley_rotations_deg"] @ np.array([-Rc / Ra, 1.0])  # noqa: E731
+    assert np.ptp(rel(base)) > 3.9  # it vibrates: +-2 deg
+    np.testing.assert_allclose(rel(turned), rel(base), atol=1e-9)
+    np.testing.assert_allclose(turned.channels["span_tensions_N"], base.channels["span_tensions_N"], rtol=1e-9)
+    assert base.meta["displaced_span_ends"] == turned.meta["displaced_span_ends"] == []
+
+
+def test_end_slides_are_the_kinematic_maps_and_far_ones_are_flagged():
+    """drive.end_slides = the offsets of the kinematic map's span end nodes from the moved
+    layout's tangent points, along the span (tensioner bench, hybrid, arm and pulleys turned);
+    span_flags.displaced_span_ends flags a span whose ends sat beyond END_SLIDE_FRACTION of its
+    length, with its largest slide, in one line (mesh-independent: the old check refused half
+    an element)."""
+    import dataclasses
+    from pathlib import Path
+
+    from beltjax import drive, statics
+    from beltjax.drive.kinematics import _centers, _moved_tangents
+    from beltjax.scene import load_scene
+    from beltjax.span_flags import END_SLIDE_FRACTION, displaced_span_ends
+
+    sc = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "tensioner_bench_stage2.toml")
+    sc = drive.canonical(dataclasses.replace(sc, model=dataclasses.replace(sc.model, fidelity="ancf",
+                                                                           elements_per_span=2)))
+    inst = statics.install(sc)
+    nr = drive.n_rigid(sc)
+    qi = drive.installed_coordinates(sc, inst).at[:nr].add(jnp.linspace(-0.2, 0.3, nr))
+    N = drive.spans_of(sc).elements
+    E, _ = drive.split_full(drive.full_coordinates(qi, sc, inst), sc)
+    _, theta = drive.angles_and_arm(qi, sc, inst)
+    tl, _ = _moved_tangents(*_centers(theta, sc, inst), sc, inst)
+    off0 = jnp.sum((E[:, 0:2] - tl.start) * tl.tangent, axis=1)
+    off1 = jnp.sum((E[:, 4 * N : 4 * N + 2] - tl.end) * tl.tangent, axis=1)
+    slides = drive.end_slides(qi, sc, inst)
+    np.testing.assert_allclose(slides, np.stack([off0, off1], axis=1), atol=1e-12)
+    assert float(jnp.max(jnp.abs(slides))) > 1e-3
+
+    t = np.linspace(0.0, 1.0, 11)
+    L = np.array([0.4, 0.2])
+    s = np.zeros((11, 2, 2))
+    s[4:7, 1, 1] = [0.005, 0.015, 0.012]  # span 2's end: 2.5 %, 7.5 %, 6 % of 0.2 m
+    recs = displaced_span_ends(t, s, L, ["a-b", "b-a"])
+    assert [r["span"] for r in recs] == ["b-a"]
+    r = recs[0]
+    assert r["samples"] == 2 and r["t_first_s"] == pytest.approx(0.5) and r["t_last_s"] == pytest.approx(0.6)
+    assert r["max_end_slide_mm"] == pytest.approx(15.0) and r["fraction_of_span"] == pytest.approx(0.075)
+    assert END_SLIDE_FRACTION == 0.05
+    line = transient.run_warnings({"displaced_span_ends": recs})
+    assert len(line) == 1 and "\n" not in line[0] and "'b-a'" in line[0] and "15 mm" in line[0]

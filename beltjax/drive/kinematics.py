@@ -94,11 +94,7 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
     _, spans = _split(qi, scene)
     phi, theta = angles_and_arm(qi, scene, inst, driven_angle)
     centers, radii = _centers(theta, scene, inst, shift)
-    travel = 0.0
-    if t is not None and travel_follows_drive(scene):  # the belt travels with the free drive pulley
-        d = drive_pulley(scene)
-        travel = scene.route.senses[d] * radii[d] * phi[d]
-    start, end, t_hat = _span_ends(phi, centers, radii, scene, inst, travel)
+    start, end, t_hat = _span_ends(phi, centers, radii, scene, inst, _travel(phi, radii, scene, t))
     if slip is not None and slip.size:
         s0, s1 = belt_slip.node_shifts(slip, len(scene.route.order))
         start, end = start + s0[:, None] * t_hat, end + s1[:, None] * t_hat
@@ -106,6 +102,32 @@ def full_coordinates(qi, scene: Scene, inst: Installation, driven_angle=0.0, t=N
         start, end, t_hat, spans, inst.stretch)  # every span at once
     return jnp.concatenate([nodes.reshape(-1), _body_coordinates(phi, theta, centers, scene, inst, t, shift,
                                                                  rotor_angles(qi, scene))])
+
+
+def _travel(phi, radii, scene: Scene, t):
+    """The belt's travel beyond the nominal one (m): a free drive pulley's rim turn in a
+    transient (time t, s) whose belt travels with it (:func:`travel_follows_drive`), else 0."""
+    if t is None or not travel_follows_drive(scene):
+        return 0.0
+    d = drive_pulley(scene)
+    return scene.route.senses[d] * radii[d] * phi[d]
+
+
+def end_slides(qi, scene: Scene, inst: Installation, t=None):
+    """How far (m) each span's start and end node sit from their tangent points, along the span,
+    shape (n, 2): s R (phi - dpsi) - travel of :func:`_span_ends`.  The hybrid model's end nodes
+    carry the belt's axial perturbation displacement there; t: time (s) of a transient, or None."""
+    phi, theta = angles_and_arm(qi, scene, inst)
+    centers, radii = _centers(theta, scene, inst)
+    _, dpsi = _moved_tangents(centers, radii, scene, inst)
+    return jnp.stack(_end_slides(phi, radii, dpsi, scene, _travel(phi, radii, scene, t)), axis=1)
+
+
+def _end_slides(phi, radii, dpsi, scene: Scene, travel=0.0):
+    """(start, end) slides (n,) m of every span's end nodes from its tangent points (:func:`_span_ends`)."""
+    senses = jnp.asarray(scene.route.senses, dtype=radii.dtype)
+    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
+    return senses * radii * (phi - dpsi) - travel, senses[nxt] * radii[nxt] * (phi[nxt] - dpsi) - travel
 
 
 def rotor_angles(qi, scene: Scene):
@@ -136,13 +158,10 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0
     each end node slides along its span by the rim travel less that, s R (phi - dpsi) - travel:
     spans and arcs then keep the belt's length exactly as an arm swings.
     """
-    senses = jnp.asarray(scene.route.senses, dtype=centers.dtype)
-    nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
     tl, dpsi = _moved_tangents(centers, radii, scene, inst)
     t_hat = tl.tangent
-    start = tl.start + (senses * radii * (phi - dpsi) - travel)[:, None] * t_hat
-    end = tl.end + (senses[nxt] * radii[nxt] * (phi[nxt] - dpsi) - travel)[:, None] * t_hat
-    return start, end, t_hat
+    s0, s1 = _end_slides(phi, radii, dpsi, scene, travel)
+    return tl.start + s0[:, None] * t_hat, tl.end + s1[:, None] * t_hat, t_hat
 
 
 def _body_coordinates(phi, theta, centers, scene: Scene, inst: Installation, t=None, shift=None, rotors=None):

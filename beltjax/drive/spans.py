@@ -25,10 +25,6 @@ import numpy as np
 from beltjax import ancf, span
 from beltjax.ancf import Section
 
-#: how far a hybrid span's end node may slide from its tangent point, in elements (the kinematic
-#: map pins the end nodes at the tangent points plus the rim slide: a perturbation only)
-MAX_SLIDE_ELEMENTS = 0.5
-
 
 class SpanModel(eqx.Module):
     """The interface of a span component (see the module docstring)."""
@@ -94,11 +90,6 @@ class SpanModel(eqx.Module):
     def tensions(self, E, EA, Le):
         """Mean axial force of each span (N), E (n, 4 (N+1)) span coordinates, Le (n,) m."""
         raise NotImplementedError
-
-    def slide_limit(self, Le):
-        """How far (m) a span end may slide from its tangent point (half an element of
-        length Le for ANCF spans; unlimited for bars)."""
-        return np.inf
 
     def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
         """The drive's reduced accelerations q_i'' (rad/s^2, m/s^2) with these spans; with the
@@ -170,9 +161,6 @@ class AncfSpans(SpanModel):
 
     def tensions(self, E, EA, Le):
         return jnp.stack([jnp.mean(tension_profile(E[s], EA, Le[s], self.n_elements)) for s in range(E.shape[0])])
-
-    def slide_limit(self, Le):
-        return MAX_SLIDE_ELEMENTS * Le
 
     def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
         from beltjax.drive.equations import schur_accelerations
