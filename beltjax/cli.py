@@ -255,18 +255,23 @@ def cmd_campbell(args) -> int:
 
 def cmd_simulate(args) -> int:
     """Transient of a drive: simulation.npz, simulation.json, time-history and spectrum plots."""
-    from beltjax import transient
+    from beltjax import progress, transient
     from beltjax.plotting import plot_simulation, plot_spectra
 
     scene = _load(args.scene)
     out = _out_dir(args.out)
+    failed = None
     try:
         res = _analysis(transient.simulate, scene, args.t_end, dt=args.dt, output_dt=args.output_dt,
                         progress=True)
     except transient.TransientError as exc:
-        raise InputError(str(exc)) from None
+        if getattr(exc, "partial", None) is None:
+            raise InputError(str(exc)) from None
+        res, failed = exc.partial, str(exc)  # the solver failed: its outputs up to there are written
     summary = res.summary(settle_fraction=args.settle)
     summary["scene"] = str(args.scene)
+    if failed:
+        summary["failure"] = failed
     res.save_npz(out / "simulation.npz")
     outputs.write_json(out / "simulation.json", summary)
     title = _title(scene, args.scene)
@@ -277,6 +282,9 @@ def cmd_simulate(args) -> int:
     print(simulation_table(res, summary))
     for line in transient.run_warnings(res.meta):  # slack spans, spans past the critical speed, forcing
         print(line)
+    if failed:
+        progress.message(f"beltjax: error: {failed}")
+        return 1
     return 0
 
 

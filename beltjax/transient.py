@@ -398,6 +398,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     dt0 = jnp.asarray(dt, dtype=y.dtype)
     t0 = time.perf_counter()
     states = _start(scene, inst, y, jnp.zeros_like(dt0), dt0, dtmax)
+    failure = None
     for c in range(n_chunks):
         k0 = c * per_chunk
         ts = (k0 + np.arange(per_chunk + 1)) * out_dt
@@ -409,6 +410,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
             dt0 = jnp.asarray((ts[-1] - ts[0]) / max(1, int(n_ok)), dtype=y.dtype)
         if compile_s is None:
             compile_s = time.perf_counter() - t0
+        ys = np.asarray(ys)
+        steps += int(nst)
         if code != 0:
             name = _result_name(code)
             why = _RESULT_MESSAGES.get(name, name)
@@ -419,16 +422,17 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
                           f'"generalized_alpha", or raise simulation.max_steps (now {max_steps})')
             else:
                 advice = f"try a smaller simulation.rtol (now {scene.simulation.rtol:g})"
-            raise TransientError(
-                f"solver {scene.simulation.solver} failed between t = {ts[0]:.4g} s and {ts[-1]:.4g} s: {why}; {advice}"
-            )
-        ys = np.asarray(ys)
-        if not np.all(np.isfinite(ys)):
-            raise TransientError(f"solver {scene.simulation.solver} produced non-finite states near t = {ts[0]:.4g} s")
+            failure = f"solver {scene.simulation.solver} failed between t = {ts[0]:.4g} s and {ts[-1]:.4g} s: {why}; {advice}"
+        elif not np.all(np.isfinite(ys)):
+            failure = f"solver {scene.simulation.solver} produced non-finite states near t = {ts[0]:.4g} s"
+        if failure is not None:  # keep what was solved: the samples before the failure
+            solved = int(np.argmin(np.all(np.isfinite(ys), axis=1)))
+            ts_all.append(ts[1:solved])
+            ys_all.append(ys[1:solved])
+            break
         y = jnp.asarray(ys[-1])
         ts_all.append(ts[1:])
         ys_all.append(ys[1:])
-        steps += int(nst)
         if progress:
             done = min(ts[-1], t_end)
             el = time.perf_counter() - wall0
@@ -440,6 +444,22 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     ys = np.concatenate(ys_all)
     keep = t <= t_end + 1e-12
     t, ys = t[keep], ys[keep]
+    if failure is not None:  # the outputs up to the failure go with the error (``exc.partial``)
+        exc = TransientError(f"{failure} (outputs up to t = {t[-1]:.4g} s kept)")
+        try:
+            exc.partial = _result(scene, inst, t, ys, forcing, fixed, dict(
+                dt_s=dt, output_dt_s=out_dt, steps=steps, wall_s=wall, first_chunk_s=compile_s, failure=failure))
+        except TransientError:
+            exc.partial = None
+        raise exc
+    return _result(scene, inst, t, ys, forcing, fixed, dict(dt_s=dt, output_dt_s=out_dt, steps=steps, wall_s=wall,
+                                                            first_chunk_s=compile_s))
+
+
+def _result(scene: Scene, inst, t, ys, forcing, fixed: bool, run: dict) -> SimulationResult:
+    """The :class:`SimulationResult` of the saved states ys at times t (s): the output channels,
+    their checks and the meta (``run``: the run's dt_s, output_dt_s, steps, wall and compile times)."""
+    dt, out_dt = run["dt_s"], run["output_dt_s"]
     chans = {k: np.asarray(v) for k, v in _outputs(jnp.asarray(t), jnp.asarray(ys), scene, inst).items()}
     pulley_forces = chans.pop("_pulley_forces_N")
     cols = _columns(scene)
@@ -464,9 +484,9 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         rho_inf=scene.simulation.rho_inf if fixed else None,
         output_dt_s=out_dt,
         t_end_s=float(t[-1]),
-        steps=steps,
-        wall_s=wall,
-        first_chunk_s=compile_s,
+        steps=run["steps"],
+        wall_s=run["wall_s"],
+        first_chunk_s=run["first_chunk_s"],
         installation_tension_N=float(inst.tension),
         slack_spans=slack_spans(t, chans["span_tensions_N"], cols["span_tensions_N"]),
         supercritical_spans=supercritical_spans(t, pulley_forces, cols["span_forces_N"], chans["belt_speed_m_s"]),
@@ -476,5 +496,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         excitation_warnings=[*forcing.warnings,
                              *excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed)],
     )
+    if "failure" in run:
+        meta["failure"] = run["failure"]
     return SimulationResult(t=t, channels=chans, columns=cols, meta=meta, y=ys)
 

@@ -399,3 +399,36 @@ def test_end_slides_are_the_kinematic_maps_and_far_ones_are_flagged():
     assert END_SLIDE_FRACTION == 0.05
     line = transient.run_warnings({"displaced_span_ends": recs})
     assert len(line) == 1 and "\n" not in line[0] and "'b-a'" in line[0] and "15 mm" in line[0]
+
+
+def test_a_failed_run_keeps_its_outputs_up_to_the_failure(tmp_path, capsys, monkeypatch):
+    """A solver that fails mid-run (Dopri8 capped at 60 steps per chunk, a 1e7 N m torque at
+    t = 31 ms on the free alternator of the two-pulley bench) raises one line naming the cause
+    and the window, with the outputs up to the failure on the exception (``exc.partial``);
+    ``beltjax simulate`` writes those outputs, says the same on stderr and exits with 1."""
+    from pathlib import Path
+
+    from beltjax.cli import main
+    from beltjax.scene import loads_scene
+
+    text = (Path(__file__).resolve().parents[1] / "scenes" / "sim_two_pulley_release.toml").read_text()
+    text = text.replace('solver = "generalized_alpha"', 'solver = "dopri8"\nmax_steps = 60')
+    text = text.replace("dt_s = 2e-4", "dt_s = 1e-4").replace("rho_inf = 1.0", "")
+    text = text.replace("[simulation]", '[[torque]]\npulley = "alternator"\nmean_Nm = 1e7\nt_start_s = 0.031\n\n'
+                                        "[simulation]")
+    with pytest.raises(transient.TransientError) as info:
+        transient.simulate(loads_scene(text), 0.06, chunk_s=0.01)
+    msg, part = str(info.value), info.value.partial
+    assert "\n" not in msg and "max_steps" in msg and "between t = 0.03 s and 0.04 s" in msg and "kept" in msg
+    assert 0.031 <= part.t[-1] < 0.04 and np.all(np.diff(part.t) > 0) and np.all(np.isfinite(part.y))
+    assert part.meta["failure"] in msg and part.channels["span_tensions_N"].shape == (part.t.size, 2)
+
+    monkeypatch.setenv("BELTJAX_CACHE", str(tmp_path / "cache"))
+    scene = tmp_path / "fails.toml"
+    scene.write_text(text)
+    capsys.readouterr()
+    code = main(["simulate", str(scene), "--t-end", "0.06", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and err[-1].startswith("beltjax: error: solver dopri8 failed") and "kept" in err[-1]
+    data = np.load(tmp_path / "out" / "simulation.npz")
+    assert 0.031 <= data["t_s"][-1] < 0.04
