@@ -24,6 +24,7 @@ so that a second run of like scenes skips most of the compilation).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pathlib
 
@@ -88,3 +89,31 @@ def enable_compile_cache():
         jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     except Exception:  # a read-only home: run without the cache
         pass
+
+
+@contextlib.contextmanager
+def cacheable():
+    """Trace within this context for a program JAX's persistent compilation cache can keep.
+
+    diffrax checks its inputs (dt0's sign, SaveAt.ts ordered and within [t0, t1]) with
+    equinox's ``error_if``, which compiles to host callbacks, and JAX never writes a program with
+    host callbacks to its persistent cache: every run of a transient recompiled its integrator
+    (28-78 s for the eight-pulley hybrid drive).  Inside this context those checks give NaN
+    instead (equinox's ``on_error="nan"``), which the callers' finiteness checks report; their
+    inputs satisfy the checks by construction.  Without equinox's private switch (another
+    equinox version) it does nothing: the program still runs, only uncached.
+    """
+    try:
+        from equinox import _errors
+    except ImportError:  # pragma: no cover
+        yield
+        return
+    old = getattr(_errors, "EQX_ON_ERROR", None)
+    if old is None:  # pragma: no cover
+        yield
+        return
+    _errors.EQX_ON_ERROR = "nan"
+    try:
+        yield
+    finally:
+        _errors.EQX_ON_ERROR = old

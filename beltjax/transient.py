@@ -44,7 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, excitation, signals, statics
+from beltjax import drive, excitation, runtime, signals, statics
 from beltjax.drive import belt_slip, couplings
 from beltjax.drive.belt_slip import split_state
 from beltjax.span_flags import displaced_span_ends, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
@@ -242,15 +242,17 @@ def _solve_chunk(term, solver, controller, y0, ts, dt0, max_steps: int, states):
 @eqx.filter_jit
 def _start(scene: Scene, inst, y0, t0, dt0, dtmax=None):
     """:func:`_start_states` of the scene's solver (:func:`_solver`; dtmax: largest adaptive step, s)."""
-    return _start_states(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, t0, dt0)
+    with runtime.cacheable():
+        return _start_states(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, t0, dt0)
 
 
 @eqx.filter_jit
 def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states, dtmax=None):
     """:func:`_solve_chunk` of the scene's vector field and solver (:func:`_solver`; dtmax:
     largest adaptive step, s)."""
-    return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, ts, dt0, max_steps,
-                        states)
+    with runtime.cacheable():  # kept by the persistent compilation cache: a re-run does not recompile
+        return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, ts, dt0,
+                            max_steps, states)
 
 
 # --------------------------------------------------------------------------- outputs

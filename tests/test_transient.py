@@ -432,3 +432,36 @@ def test_a_failed_run_keeps_its_outputs_up_to_the_failure(tmp_path, capsys, monk
     assert code == 1 and err[-1].startswith("beltjax: error: solver dopri8 failed") and "kept" in err[-1]
     data = np.load(tmp_path / "out" / "simulation.npz")
     assert 0.031 <= data["t_s"][-1] < 0.04
+
+
+def test_the_transient_integrator_has_no_host_callbacks(monkeypatch):
+    """JAX's persistent compilation cache keeps no program with host callbacks, so a re-run of a
+    scene would recompile its integrator.  simulate traces it under runtime.cacheable, which turns
+    diffrax's input checks (equinox error_ifs) into NaN instead of callbacks: the lowered
+    integrator of a generalized-alpha and a Dopri8 run has none, and equinox's setting is
+    restored afterwards."""
+    from pathlib import Path
+
+    from equinox import _errors
+
+    from beltjax.scene import loads_scene
+
+    text = (Path(__file__).resolve().parents[1] / "scenes" / "sim_two_pulley_release.toml").read_text()
+    captured = []
+
+    class Stop(Exception):
+        pass
+
+    def capture(*args, **kwargs):
+        captured.append((args, kwargs))
+        raise Stop
+
+    integrate = transient._integrate_chunk
+    monkeypatch.setattr(transient, "_integrate_chunk", capture)
+    for solver in ("generalized_alpha", "dopri8"):
+        with pytest.raises(Stop):
+            transient.simulate(loads_scene(text.replace('solver = "generalized_alpha"', f'solver = "{solver}"')), 0.01)
+    for args, kwargs in captured:
+        hlo = integrate.lower(*args, **kwargs).as_text()
+        assert "callback" not in hlo
+    assert _errors.EQX_ON_ERROR == "raise"

@@ -26,7 +26,7 @@ import diffrax
 import jax
 import jax.numpy as jnp
 
-from beltjax import critical, drive, friction, parameters, statics
+from beltjax import critical, drive, friction, parameters, runtime, statics
 from beltjax.excitation import ADAPTIVE_PERIOD_FRACTION
 from beltjax.scene import Scene
 from beltjax.drive.couplings import isolator_wind_up
@@ -168,9 +168,10 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
     ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
     solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
-    sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=ts[-1], dt0=jnp.minimum(1e-4, period / 64), y0=y0,
-                              saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
-                              max_steps=settings.max_steps, throw=False)
+    with runtime.cacheable():  # kept by the persistent compilation cache
+        sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=ts[-1], dt0=jnp.minimum(1e-4, period / 64), y0=y0,
+                                  saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
+                                  max_steps=settings.max_steps, throw=False)
     ys = sol.ys
     early, late = ys[: K + 1], ys[K + 1 :]
     t_rec = ts[K + 1 : -1]
