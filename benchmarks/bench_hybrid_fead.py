@@ -4,7 +4,7 @@ resolved to 1 kHz, at most 30 s wall per simulated second, under 2 GB, compile u
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_hybrid_fead.py            # about 6 min; writes results/hybrid_fead.json
+    .venv/bin/python benchmarks/bench_hybrid_fead.py            # about 8 min; writes results/hybrid_fead.json
     .venv/bin/python benchmarks/bench_hybrid_fead.py --quick    # 8 elements at idle only
     .venv/bin/python benchmarks/bench_hybrid_fead.py --rerun-only   # the command's re-run, cached
 
