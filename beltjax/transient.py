@@ -51,7 +51,7 @@ from beltjax.span_flags import displaced_span_ends, run_warnings, slack_spans, s
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene, Simulation
-from beltjax.transient_outputs import UNITS, _columns, _outputs, _outputs_one, output_nodes  # noqa: F401
+from beltjax.transient_outputs import UNITS, _columns, _outputs, _outputs_one, friction_channels, output_nodes  # noqa: F401
 
 __all__ = ["TransientError", "SimulationResult", "simulate", "initial_state", "default_dt", "default_solver",
            "slack_spans", "slack_warning", "supercritical_spans", "run_warnings"]
@@ -295,26 +295,6 @@ class SimulationResult:
         np.savez_compressed(path, **arrays)
 
 
-#: largest slide of a span end node from its tangent point, in elements (hybrid model)
-
-
-def _friction_channels(scene: Scene, inst, pulley_forces, t, chans: dict, cols: dict) -> list[dict]:
-    """Add the friction each arc needs (capstan law, :mod:`beltjax.friction`) and, where the scene
-    gives a friction coefficient, the slip margins to the channels; the pulleys whose margin
-    fell to zero or below (:func:`beltjax.span_flags.slipping_pulleys`).  A span that carries
-    nothing (slack or past the critical speed: flagged on its own) counts as 1e-9 N."""
-    from beltjax import friction
-
-    need, margins = friction.arc_margins(scene, pulley_forces, np.asarray(inst.wrap), np)
-    order = list(scene.route.order)
-    chans["friction_needed"], cols["friction_needed"] = need, order
-    given = friction.given(scene)
-    if not given:
-        return []
-    chans["slip_margins"], cols["slip_margins"] = margins, [order[i] for i in given]
-    return slipping_pulleys(t, margins, cols["slip_margins"])
-
-
 _RESULT_MESSAGES = {
     "nonlinear_max_steps_reached": "the implicit (Newton) iteration did not converge",
     "max_steps_reached": "the solver hit max_steps (simulation.max_steps)",
@@ -342,10 +322,13 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     chunk to chunk, so the result does not depend on the chunks (to round-off for fixed
     steps).  Raises :class:`TransientError` (one line) for bad arguments (an output interval
     below a fixed step, more than :data:`MAX_STEPS` steps, forcing the step or the output
-    sampling cannot resolve: :mod:`beltjax.excitation`) or a failed solver, and StaticsError
-    when the drive has no equilibrium to start from.  Spans that go slack or pass the
-    critical speed (:mod:`beltjax.critical`) are recorded in ``meta`` (slack_spans,
-    supercritical_spans), as are excitation_warnings; :func:`run_warnings` words them.
+    sampling cannot resolve: :mod:`beltjax.excitation`) or a failed solver (then with the
+    outputs up to the failure as ``exc.partial``, a :class:`SimulationResult` whose meta has
+    ``failure``), and StaticsError when the drive has no equilibrium to start from.  Spans that
+    go slack or pass the critical speed (:mod:`beltjax.critical`), arcs past their capstan limit
+    and hybrid span ends that slid far (:func:`displaced_span_ends`) are recorded in ``meta``
+    (slack_spans, supercritical_spans, slipping_pulleys, displaced_span_ends), as are
+    excitation_warnings; :func:`run_warnings` words them.
     """
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise TransientError(f"t_end: must be a finite time > 0 s, got {t_end!r}")
@@ -475,7 +458,7 @@ def _result(scene: Scene, inst, t, ys, forcing, fixed: bool, run: dict) -> Simul
         if not np.all(np.isfinite(v)):
             raise TransientError(f"output {k} is not finite: the run diverged")
     slides = chans.pop("_end_slides_m", None)
-    slipping = _friction_channels(scene, inst, pulley_forces, t, chans, cols)
+    slipping = friction_channels(scene, inst, pulley_forces, t, chans, cols)
     meta = dict(
         fidelity=scene.model.fidelity,
         elements_per_span=drive.spans_of(scene).independent // 4,

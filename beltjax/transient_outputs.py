@@ -6,11 +6,13 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-from beltjax import critical, drive
+from beltjax import critical, drive, friction
 from beltjax.scene import Scene
 from beltjax.drive import belt_slip, couplings
 from beltjax.drive.effects import effects_of
+from beltjax.span_flags import slipping_pulleys
 
 
 def output_nodes(scene: Scene) -> list[tuple[int, int, str]]:
@@ -156,3 +158,18 @@ UNITS = dict(
     creep_speeds_m_s="m/s",
     friction_power_W="W",
 )
+
+
+def friction_channels(scene: Scene, inst, pulley_forces, t, chans: dict, cols: dict) -> list[dict]:
+    """Add the friction each arc needs (capstan law, :mod:`beltjax.friction`) and, where the scene
+    gives a friction coefficient, the slip margins to the channels; the pulleys whose margin
+    fell to zero or below (:func:`beltjax.span_flags.slipping_pulleys`).  A span that carries
+    nothing (slack or past the critical speed: flagged on its own) counts as 1e-9 N."""
+    need, margins = friction.arc_margins(scene, pulley_forces, np.asarray(inst.wrap), np)
+    order = list(scene.route.order)
+    chans["friction_needed"], cols["friction_needed"] = need, order
+    given = friction.given(scene)
+    if not given:
+        return []
+    chans["slip_margins"], cols["slip_margins"] = margins, [order[i] for i in given]
+    return slipping_pulleys(t, margins, cols["slip_margins"])
