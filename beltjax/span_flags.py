@@ -104,13 +104,13 @@ def displaced_span_ends(t, slides, lengths, names) -> list[dict]:
     (tests/test_transient.py), but the span's transverse boundary, hence its free length, is off
     by as much.  Records as :func:`slack_spans` with max_end_slide_mm and fraction_of_span.
     """
-    frac = np.max(np.abs(np.asarray(slides)), axis=2) / np.asarray(lengths)[None, :]
+    size = np.max(np.abs(np.asarray(slides)), axis=2)  # (nt, n) m: the farther end of each span
+    frac = size / np.asarray(lengths)[None, :]
     out = span_episodes(t, END_SLIDE_FRACTION - frac, names, "_margin")
     for r in out:
         j = list(names).index(r["span"])
         del r["_margin"]
-        r.update(max_end_slide_mm=1e3 * float(np.max(np.abs(np.asarray(slides)[:, j]))),
-                 fraction_of_span=float(np.max(frac[:, j])))
+        r.update(max_end_slide_mm=1e3 * float(np.max(size[:, j])), fraction_of_span=float(np.max(frac[:, j])))
     return out
 
 

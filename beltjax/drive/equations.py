@@ -17,7 +17,7 @@ from beltjax.drive.spans import spans_of
 from beltjax.drive import belt_slip
 from beltjax.drive.effects import effects_of
 from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, belt_travel, rotor_angles, full_coordinates, span_lengths_and_jacobian, split_full
-from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix, mean_body_loads
+from beltjax.drive.forces import bar_axial_force, body_forces, full_forces, full_mass_matrix, mean_body_loads, span_mass_blocks
 
 
 def transport_speed(scene: Scene, inst: Installation, speed):
@@ -135,9 +135,8 @@ def reduced_mass(scene: Scene, inst: Installation, M_full=None) -> ReducedMass:
     m_body = jnp.diagonal(M)[ns:]
     if span_coordinate_index(scene).size == 0:
         return ReducedMass(M, None, None, m_body)
-    n, loc = len(scene.route.order), _span_local_index(scene)
-    P = ns // n
-    blocks = jnp.stack([M[s * P : (s + 1) * P, s * P : (s + 1) * P] for s in range(n)])
+    loc = _span_local_index(scene)
+    blocks = span_mass_blocks(scene, inst)  # the blocks M_full is made of (:func:`full_mass_matrix`)
     M_ss = blocks[:, loc][:, :, loc]
     eye = jnp.broadcast_to(jnp.eye(loc.size, dtype=M.dtype), M_ss.shape)
     inv_ss = jax.vmap(lambda A, I: jax.scipy.linalg.cho_solve((jnp.linalg.cholesky(A), True), I))(M_ss, eye)
@@ -189,24 +188,19 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
 
 
 def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
-    """:func:`reduced_accelerations` of a drive with massive (ANCF) spans, by the Schur complement."""
+    """:func:`reduced_accelerations` of a drive with massive (ANCF) spans, by the Schur complement
+    (every such span has span coordinates: at least one element of 4 N independent ones)."""
     nr = n_rigid(scene)
     idx = span_coordinate_index(scene)
     q, v, gamma, J_r, F = full_motion(qi, qi_dot, scene, inst, speed, t, rigid_only=True)
-    if idx.size == 0:
-        M = rm.M_full
-        r = F - M @ gamma
-        M_rr, F_r = J_r.T @ (M @ J_r), J_r.T @ r
-    else:  # M is block diagonal: its products and the span block's inverse go by blocks
-        r = F - _block_product(rm, gamma)
-        MJ = _block_product(rm, J_r)
-        M_rr, F_r = J_r.T @ MJ, J_r.T @ r
+    # M is block diagonal: its products and the span block's inverse go by blocks
+    r = F - _block_product(rm, gamma)
+    MJ = _block_product(rm, J_r)
+    M_rr, F_r = J_r.T @ MJ, J_r.T @ r
     # a free drive pulley's travel: its coupling reaches only the rigid rows (k < n_rigid) and
     # the span rows' column k (S^T P = P[idx]); the span block M_ss stays constant
     ti = travel_inertia(q, v, gamma, scene, inst, t, rm.BC)
     M_rr, F_r = with_travel_inertia(M_rr, F_r, J_r, ti)
-    if idx.size == 0:
-        return _small_spd_solve(M_rr, F_r)
     F_s = r[idx]
     M_sr = MJ[idx]  # (n_span, n_rigid)
     if ti is not None:
