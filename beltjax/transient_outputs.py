@@ -56,10 +56,10 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         F = F - ti.kappa * qdd[ti.k] * ti.P
     c = drive.transient_transport_speed(scene, inst, v, t)[0]
     R = F - M_full @ a  # applied minus inertial: what the constraints must balance
-    Js = jax.jacfwd(lambda s: phi(qi, t, s, drv0))(shift0)  # (nq, nrp, 2)
-    bearings = jnp.einsum("q,qkd->kd", R, Js)
-    Jd = jax.jacfwd(lambda d: phi(qi, t, shift0, d))(drv0)  # (nq, n)
-    hold = -(R @ Jd)  # torque the drive applies to keep a driven pulley on its motion
+    # the bearings' reactions R . dPhi/dshift and the drives' holding torques -R . dPhi/d(driven
+    # angle): one reverse pass for both (forward passes would take one per bearing axis and pulley)
+    bearings, hold = jax.vjp(lambda s, d: phi(qi, t, s, d), shift0, drv0)[1](R)
+    hold = -hold  # torque the drive applies to keep a driven pulley on its motion
 
     E, B = drive.split_full(q, scene)
     _, Bd = drive.split_full(v, scene)

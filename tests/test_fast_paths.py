@@ -4,6 +4,7 @@
   coordinates; for the rotational model the bars' forces through the span lengths) =
   jnp.linalg.solve(*drive.reduced_system(...)) (dense J^T M J), with every effect and load
   the rotational model takes;
+* the rotational model's compressed bodies' Jacobian (drive.bodies_jacobian) = jacfwd;
 * drive.span_coordinate_index: the span columns of dPhi/dq_i are that constant selection;
 * the generalized-alpha Newton solve with the kept permutation = jax.scipy.linalg.lu_solve.
 """
@@ -177,6 +178,33 @@ def test_rotational_accelerations_with_every_effect_equal_dense_solve(base, cran
     qi = drive.installed_coordinates(sc, inst) + 1e-3 * jnp.asarray(rng.standard_normal(n))
     qd = jnp.asarray(rng.standard_normal(n))
     rm = drive.reduced_mass(sc, inst)
+    for t in (None, 0.013):
+        fast = drive.reduced_accelerations(qi, qd, sc, inst, rm, t=t, speed=3.0)
+        ref = jnp.linalg.solve(*drive.reduced_system(qi, qd, sc, inst, speed=3.0, t=t))
+        np.testing.assert_allclose(fast, ref, rtol=1e-10, atol=1e-10 * float(jnp.max(jnp.abs(ref))))
+
+
+def test_rotational_structured_solve_on_the_eight_pulley_drive():
+    """The rotational model's compressed bodies' Jacobian (one pass for all own coordinates) and
+    its diagonal-plus-Schur solve equal jacfwd and the dense solve on the eight-pulley drive with a
+    decoupler (its rotor a body of its own), an isolated crank (its rim a free coordinate),
+    unbalance on every pulley and all effects, at random states."""
+    text = (SCENES / "fead_8pulley_decoupler.toml").read_text()
+    text = text.replace('effects = ["transport"', 'effects = ["unbalance", "bearing_damping", "gravity", "transport"', 1)
+    sc = scene_mod.loads_scene(text + '\n[isolator]\npulley = "crank"\nstiffness = 400.0\ndamping = 0.3\n')
+    pulleys = tuple(dataclasses.replace(p, cm_offset=jnp.asarray([1e-3, -5e-4 * k]), bearing_damping=jnp.asarray(1e-3))
+                    for k, p in enumerate(sc.pulleys))
+    sc = drive.canonical(dataclasses.replace(sc, pulleys=pulleys))
+    assert len(sc.decouplers) == 1 and drive.drive_of(sc).own_bodies[-1] == len(sc.route.order)
+    inst = statics.install(sc)
+    n = drive.n_independent(sc)
+    rng = np.random.default_rng(5)
+    qi = drive.installed_coordinates(sc, inst) + 1e-2 * jnp.asarray(rng.standard_normal(n))
+    qd = 10.0 * jnp.asarray(rng.standard_normal(n))
+    rm = drive.reduced_mass(sc, inst)
+    bodies = lambda x: drive.full_coordinates(x, sc, inst, t=jnp.asarray(0.013))[drive.n_span_coordinates(sc):]  # noqa: E731
+    Jb = drive.bodies_jacobian(bodies, qi, sc)
+    np.testing.assert_allclose(Jb.dense(), jax.jacfwd(bodies)(qi), rtol=0, atol=1e-14)
     for t in (None, 0.013):
         fast = drive.reduced_accelerations(qi, qd, sc, inst, rm, t=t, speed=3.0)
         ref = jnp.linalg.solve(*drive.reduced_system(qi, qd, sc, inst, speed=3.0, t=t))

@@ -60,6 +60,15 @@ class Drive:
         return sum(self.free) + len(self.rotors) + self.layout.coordinates
 
     @property
+    def own_bodies(self) -> tuple[int, ...]:
+        """The body each own rigid coordinate turns: the free pulleys' angles (route order), then
+        the decoupler rotors' (the rigid coordinates before the layout's).  Each moves that body's
+        (x, y, angle) only (:func:`beltjax.drive.kinematics.angles_and_arm`, ``rotor_angles``),
+        which the rotational model's Jacobian and solve use (:mod:`beltjax.drive.equations`)."""
+        n = len(self.route)
+        return tuple(i for i, f in enumerate(self.free) if f) + tuple(n + j for j in range(len(self.rotors)))
+
+    @property
     def n_independent(self) -> int:
         """Independent coordinates: the rigid ones, then the spans'."""
         return self.n_rigid + self.spans.independent * len(self.route)

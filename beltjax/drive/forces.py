@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from beltjax.scene import ARM, TENSIONER, Scene
 from beltjax.drive.topology import Installation, body_names, element_length, span_names
@@ -95,8 +96,9 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     f = fx.body_forces(f, bodies, bodies_dot, scene, t)
     if scene.decouplers:
         f = couplings.damping_forces(f, bodies, bodies_dot, scene)
-    for load in scene.torques:
-        f = f.at[_load_row(scene, load.pulley), 2].add(torque(load, t))
+    if scene.torques:  # one scatter for all loads (one kernel, not one per load)
+        rows = np.array([_load_row(scene, load.pulley) for load in scene.torques]) % f.shape[0]
+        f = f.at[rows, 2].add(jnp.stack([torque(load, t) for load in scene.torques]))
     return f
 
 

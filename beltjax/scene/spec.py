@@ -214,7 +214,7 @@ class Fluctuation(eqx.Module):
         """The amplitude (deg) at the pulley's nominal speed ``speed_rpm`` (rpm)."""
         if self.rpm is None:
             return self.amplitude_deg
-        return jnp.interp(jnp.abs(speed_rpm), self.rpm, self.amplitude_deg)
+        return _interp_held(jnp.abs(speed_rpm), self.rpm, self.amplitude_deg)
 
     def angle(self, alpha, t, speed_rpm=None):
         """The fluctuation (rad) at mean rotation alpha (rad), time t (s) and nominal speed
@@ -339,3 +339,14 @@ class Scene(eqx.Module):
         """Belt path (:class:`beltjax.geometry.DriveGeometry`) at arm angle ``arm_angle`` (rad)."""
         centers, radii = self.layout(arm_angle)
         return geometry.drive_geometry(centers, radii, self.route.senses, names=self.route.order, check=check)
+
+
+def _interp_held(x, xp, fp):
+    """Piecewise-linear interpolation of the table (xp increasing, fp) at x, held beyond its ends:
+    ``jnp.interp``'s values without its search loop (a while loop of XLA, which costs more than the
+    rest of a rotational vector field; the tables are a few speeds long, so every knot is compared)."""
+    if xp.shape[0] == 1:
+        return fp[0] + 0.0 * x
+    i = jnp.clip(jnp.sum(x >= xp[1:-1]), 0, xp.shape[0] - 2)
+    w = jnp.clip((x - xp[i]) / (xp[i + 1] - xp[i]), 0.0, 1.0)
+    return fp[i] + w * (fp[i + 1] - fp[i])
