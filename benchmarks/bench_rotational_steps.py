@@ -3,7 +3,7 @@ solver and tolerance, the vector field's cost per evaluation and its fused kerne
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_rotational_steps.py     # about 1 min; writes results/rotational_steps.json
+    .venv/bin/python benchmarks/bench_rotational_steps.py     # about 2 min; writes results/rotational_steps.json
 
 On ``scenes/fead_8pulley.toml`` (rotational, 800 rpm idle, 2nd and 4th crank orders, from its
 operating point), 1 s: the compiled vector field of ``beltjax.transient`` integrated by diffrax
