@@ -213,7 +213,7 @@ class BarSpans(SpanModel):
         return ancf.axial_force(lam, EA)
 
     def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
-        from beltjax.drive.equations import bar_accelerations
+        from beltjax.drive.rotational import bar_accelerations
 
         return bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip)
 
