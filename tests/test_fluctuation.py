@@ -164,3 +164,24 @@ def test_bad_traces_name_the_file(tmp_path, rows, x, cause):
 def test_orders_need_their_effect():
     with pytest.raises(BeltjaxError, match="speed_fluctuation"):
         loads_scene(_scene(_order(2.0, 0.5)).replace('"speed_fluctuation"]', "]"))
+
+
+def test_amplitude_table_interpolation_equals_jnp_interp():
+    """The loop-free interpolation of an amplitude table (scene/spec._interp_held) gives jnp.interp's
+    values and derivatives in the speed and the table's values, held beyond the ends."""
+    import jax
+
+    from beltjax.scene.spec import _interp_held
+
+    xs = jnp.linspace(0.0, 8000.0, 401) + 0.3
+    for xp, fp in (([800.0, 1500.0, 3000.0, 6000.0], [0.5, 0.2, 0.1, 0.03]), ([800.0], [0.4]), ([600.0, 900.0], [0.4, 1.0])):
+        xp, fp = jnp.asarray(xp), jnp.asarray(fp)
+        ours = jax.vmap(lambda x: _interp_held(x, xp, fp))(xs)
+        ref = jnp.interp(xs, xp, fp)
+        np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-15)
+        d_ours = jax.vmap(jax.grad(lambda x: _interp_held(x, xp, fp)))(xs)
+        d_ref = jax.vmap(jax.grad(lambda x: jnp.interp(x, xp, fp)))(xs)
+        np.testing.assert_allclose(d_ours, d_ref, rtol=0, atol=1e-15)
+        for x in (100.0, 1000.0, 7000.0):
+            np.testing.assert_allclose(jax.grad(lambda f: _interp_held(x, xp, f))(fp),
+                                       jax.grad(lambda f: jnp.interp(x, xp, f))(fp), rtol=0, atol=1e-15)

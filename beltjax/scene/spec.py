@@ -343,10 +343,10 @@ class Scene(eqx.Module):
 
 def _interp_held(x, xp, fp):
     """Piecewise-linear interpolation of the table (xp increasing, fp) at x, held beyond its ends:
-    ``jnp.interp``'s values without its search loop (a while loop of XLA, which costs more than the
-    rest of a rotational vector field; the tables are a few speeds long, so every knot is compared)."""
-    if xp.shape[0] == 1:
-        return fp[0] + 0.0 * x
-    i = jnp.clip(jnp.sum(x >= xp[1:-1]), 0, xp.shape[0] - 2)
-    w = jnp.clip((x - xp[i]) / (xp[i + 1] - xp[i]), 0.0, 1.0)
-    return fp[i] + w * (fp[i + 1] - fp[i])
+    ``jnp.interp``'s values as a sum of one clipped ramp per segment,
+    fp_0 + sum_k (fp_k+1 - fp_k) clip((x - xp_k) / (xp_k+1 - xp_k), 0, 1), elementwise over the
+    segments and one sum, so that XLA fuses it (``jnp.interp``'s search compiled to while loops,
+    and a gather by the found index to a dozen scalar kernels, in every evaluation of a
+    rotational vector field; the tables are a few speeds long)."""
+    ramps = jnp.clip((x - xp[:-1]) / (xp[1:] - xp[:-1]), 0.0, 1.0)
+    return fp[0] + jnp.sum((fp[1:] - fp[:-1]) * ramps)
