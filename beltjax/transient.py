@@ -411,7 +411,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
         elif not np.all(np.isfinite(ys)):
             failure = f"solver {scene.simulation.solver} produced non-finite states near t = {ts[0]:.4g} s"
         if failure is not None:  # keep what was solved: the samples before the failure
-            solved = int(np.argmin(np.all(np.isfinite(ys), axis=1)))
+            finite = np.all(np.isfinite(ys), axis=1)  # diffrax fills the save times it did not reach with inf
+            solved = len(ys) if finite.all() else int(np.argmin(finite))
             ts_all.append(ts[1:solved])
             ys_all.append(ys[1:solved])
             break

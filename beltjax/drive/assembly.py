@@ -64,7 +64,7 @@ class Drive:
         """The body each own rigid coordinate turns: the free pulleys' angles (route order), then
         the decoupler rotors' (the rigid coordinates before the layout's).  Each moves that body's
         (x, y, angle) only (:func:`beltjax.drive.kinematics.angles_and_arm`, ``rotor_angles``),
-        which the rotational model's Jacobian and solve use (:mod:`beltjax.drive.equations`)."""
+        which the rotational model's Jacobian and solve use (:mod:`beltjax.drive.rotational`)."""
         n = len(self.route)
         return tuple(i for i, f in enumerate(self.free) if f) + tuple(n + j for j in range(len(self.rotors)))
 
