@@ -17,7 +17,7 @@ import numpy as np
 
 from beltjax import drive, friction, parameters
 from beltjax.errors import BeltjaxError
-from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, SOLVERS, Settings, cycle_revolutions, for_scene,
+from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, SOLVERS, STARTS, Settings, cycle_revolutions, for_scene,
                                    steady_case)
 from beltjax.scene import Scene
 from beltjax.transient_outputs import UNITS, _columns
@@ -189,6 +189,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     settings = for_scene(scene, settings)
     if settings.solver not in SOLVERS:
         raise OrdersError(f"solver: {settings.solver!r}; choose one of {', '.join(SOLVERS)}", "solver")
+    if settings.start not in STARTS:
+        raise OrdersError(f"start: {settings.start!r}; choose one of {', '.join(STARTS)}", "start")
     if not MIN_SAMPLES <= settings.samples <= MAX_SAMPLES:
         raise OrdersError(f"samples: {settings.samples} samples per cycle; give {MIN_SAMPLES} to {MAX_SAMPLES}", "samples")
     need = 2 * settings.max_order * settings.revolutions + 2

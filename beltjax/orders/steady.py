@@ -9,7 +9,10 @@ The excitation cycle is the least whole number of crank revolutions over which e
 repeats (1 for whole orders, 2 with half orders: :func:`cycle_revolutions`).  The transient runs
 the scene's equations (:func:`beltjax.transient.vector_field`) with an adaptive explicit pair
 (Dopri8, the rotational model's default) from t = 0 to the end of the recorded cycle, the first
-whole cycle after ``settle_s``.  A second cycle is recorded at half that time; the largest
+whole cycle after ``settle_s``.  It starts on the periodic response of the drive linearised about
+the operating point (:mod:`beltjax.orders.linear_start`), so that only the nonlinear remainder
+of the start-up has to die out (``Settings.start = "operating_point"`` starts at rest, as a
+plain transient does).  A second cycle is recorded at half that time; the largest
 change of the state between the two, against its range over the cycle, is the ``settling``
 residual (a start-up transient decaying as exp(-s t) leaves A exp(-s t) at the end and changed
 by A (exp(-s t/2) - exp(-s t)) between the cycles: once that change is small against the
@@ -31,6 +34,7 @@ from beltjax.excitation import ADAPTIVE_PERIOD_FRACTION
 from beltjax.scene import Scene
 from beltjax.drive.couplings import isolator_wind_up
 from beltjax.drive import belt_slip
+from beltjax.orders.linear_start import linear_periodic_start
 from beltjax.transient import start_vector, vector_field
 from beltjax.transient_outputs import _outputs_one
 
@@ -42,6 +46,8 @@ CHANNELS = ("arm_angle_deg", "span_tensions_N", "hub_force_magnitudes_N", "pulle
 STATS = ("mean", "min", "max", "p2p")
 #: the adaptive solvers a steady state may use
 SOLVERS = ("dopri8", "tsit5", "kvaerno5")
+#: where the settling transient may start (:class:`Settings`)
+STARTS = ("linear", "operating_point")
 #: most crank revolutions of one excitation cycle (orders given to 1/MAX_REVOLUTIONS)
 MAX_REVOLUTIONS = 8
 
@@ -57,7 +63,10 @@ class Settings:
     :data:`beltjax.excitation.ADAPTIVE_PERIOD_FRACTION` in transients); both from the scene by
     :func:`for_scene`; solver: one of
     :data:`SOLVERS` (the explicit Dopri8 by default: on the eight-pulley drive with a decoupler the
-    implicit Kvaerno5 took 1.5-3.4x the steps at the same tolerances, and 7x the time)."""
+    implicit Kvaerno5 took 1.5-3.4x the steps at the same tolerances, and 7x the time); start:
+    one of :data:`STARTS`, where the settling transient starts (``"linear"``, the default: the
+    linearised drive's periodic response, :mod:`beltjax.orders.linear_start`; ``"operating_point"``:
+    the operating point at rest in the rotating frame, as :func:`beltjax.transient.simulate`)."""
 
     samples: int = 128
     max_order: float = 8.0
@@ -67,6 +76,7 @@ class Settings:
     revolutions: int = 1
     solver: str = "dopri8"
     top_order: float = 8.0
+    start: str = "linear"
 
     @property
     def harmonics(self) -> int:
@@ -164,7 +174,10 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     t_early = jnp.floor(cycles / 2) * period
     phase = period * jnp.arange(K + 1) / K
     ts = jnp.concatenate([t_early + phase, t_late + phase])
-    term = diffrax.ODETerm(vector_field(sc, inst))
+    f = vector_field(sc, inst)
+    if settings.start == "linear":
+        y0 = linear_periodic_start(f, y0, period, K)
+    term = diffrax.ODETerm(f)
     dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
     ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
     solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
