@@ -178,9 +178,9 @@ def test_rotational_accelerations_with_every_effect_equal_dense_solve(base, cran
     qi = drive.installed_coordinates(sc, inst) + 1e-3 * jnp.asarray(rng.standard_normal(n))
     qd = jnp.asarray(rng.standard_normal(n))
     rm = drive.reduced_mass(sc, inst)
-    for t in (None, 0.013):
-        fast = drive.reduced_accelerations(qi, qd, sc, inst, rm, t=t, speed=3.0)
-        ref = jnp.linalg.solve(*drive.reduced_system(qi, qd, sc, inst, speed=3.0, t=t))
+    for t in (None, 0.013):  # compiled: run op by op, the dense reference took most of the test's time
+        fast, ref = jax.jit(lambda x, v: (drive.reduced_accelerations(x, v, sc, inst, rm, t=t, speed=3.0),
+                                          jnp.linalg.solve(*drive.reduced_system(x, v, sc, inst, speed=3.0, t=t))))(qi, qd)
         np.testing.assert_allclose(fast, ref, rtol=1e-10, atol=1e-10 * float(jnp.max(jnp.abs(ref))))
 
 
@@ -203,11 +203,11 @@ def test_rotational_structured_solve_on_the_eight_pulley_drive():
     qd = 10.0 * jnp.asarray(rng.standard_normal(n))
     rm = drive.reduced_mass(sc, inst)
     bodies = lambda x: drive.full_coordinates(x, sc, inst, t=jnp.asarray(0.013))[drive.n_span_coordinates(sc):]  # noqa: E731
-    Jb = drive.bodies_jacobian(bodies, qi, sc)
-    np.testing.assert_allclose(Jb.dense(), jax.jacfwd(bodies)(qi), rtol=0, atol=1e-14)
-    for t in (None, 0.013):
-        fast = drive.reduced_accelerations(qi, qd, sc, inst, rm, t=t, speed=3.0)
-        ref = jnp.linalg.solve(*drive.reduced_system(qi, qd, sc, inst, speed=3.0, t=t))
+    Jb, Jref = jax.jit(lambda x: (drive.bodies_jacobian(bodies, x, sc).dense(), jax.jacfwd(bodies)(x)))(qi)
+    np.testing.assert_allclose(Jb, Jref, rtol=0, atol=1e-14)
+    for t in (None, 0.013):  # compiled: run op by op, the dense reference took 20-40 s
+        fast, ref = jax.jit(lambda x, v: (drive.reduced_accelerations(x, v, sc, inst, rm, t=t, speed=3.0),
+                                          jnp.linalg.solve(*drive.reduced_system(x, v, sc, inst, speed=3.0, t=t))))(qi, qd)
         np.testing.assert_allclose(fast, ref, rtol=1e-10, atol=1e-10 * float(jnp.max(jnp.abs(ref))))
 
 
@@ -235,7 +235,7 @@ def test_span_columns_are_the_constant_selection():
     n, nr = drive.n_independent(sc), drive.n_rigid(sc)
     idx = drive.span_coordinate_index(sc)
     qi = drive.installed_coordinates(sc, inst).at[:nr].add(0.05)
-    J = jax.jacfwd(lambda x: drive.full_coordinates(x, sc, inst, t=0.01))(qi)
+    J = jax.jit(jax.jacfwd(lambda x: drive.full_coordinates(x, sc, inst, t=0.01)))(qi)  # compiled: faster than op by op
     S = np.zeros((J.shape[0], n - nr))
     S[idx, np.arange(n - nr)] = 1.0
     np.testing.assert_array_equal(np.asarray(J[:, nr:]), S)
