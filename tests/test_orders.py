@@ -119,6 +119,17 @@ def test_linear_start_is_the_periodic_response_of_a_linear_system():
     assert np.allclose(np.asarray(sol.ys[-1]), y, rtol=0, atol=1e-8 * np.max(np.abs(y)))
 
 
+def test_an_unknown_start_is_refused():
+    """A misspelt Settings.start is an error naming the key, through the command's path and
+    through the differentiable over_speed (never the rest start in its place)."""
+    sc = loads_scene(SCENE)
+    bad = orders.Settings(start="linaer")
+    with pytest.raises(orders.OrdersError, match="start"):
+        orders.response_over_speed(sc, [600.0], settings=bad)
+    with pytest.raises(ValueError, match="start"):
+        orders.over_speed(sc, {}, jnp.asarray([600.0]), 1.0, orders.for_scene(sc, bad))
+
+
 def test_cycle_of_half_orders():
     """Half orders make a cycle of two revolutions; thirds of three; none stays 1."""
     def revs(*n):

@@ -177,6 +177,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     f = vector_field(sc, inst)
     if settings.start == "linear":
         y0 = linear_periodic_start(f, y0, period, K)
+    elif settings.start != "operating_point":  # over_speed's callers reach here unchecked
+        raise ValueError(f"start: {settings.start!r}; choose one of {', '.join(STARTS)}")
     term = diffrax.ODETerm(f)
     dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
     ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
