@@ -323,7 +323,7 @@ def analyse_modes(scene: Scene, speed: float | None = None) -> ModalResult:
     v = st.speed_m_s
     gyro = effects_of(scene).moving_belt and v != 0.0
     qi = jnp.asarray(st.qi)
-    out = modes_at(drive.canonical(scene), qi, st.inst, v, gyro)
+    out = modes_at(drive.statics_scene(scene), qi, st.inst, v, gyro)
     stable = bool(out["stable"])
     n = drive.n_independent(scene)
     freqs = np.asarray(out["freqs"])

@@ -127,7 +127,7 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
 
     validate.check_scene(scene)
     v = float(drive.belt_speed(scene)) if speed is None else schema.number(speed, "speed", "drive.speed")
-    scene = drive.canonical(scene)
+    scene = drive.statics_scene(scene)  # one compiled statics per drive, whatever its transient tables
     inst = install_compiled(scene)
     check_installation(scene, inst)
     if loaded is None:

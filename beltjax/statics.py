@@ -331,8 +331,10 @@ install_compiled = jax.jit(install)
 """The jitted :func:`install` (lengths m, tension N, arm angle rad), compiled once per scene structure."""
 
 
-@partial(jax.jit, static_argnames=("steps", "loaded"))
-def _statics_core(scene: Scene, speed, steps: int = 1, loaded: bool = False):
+@partial(jax.jit, static_argnames=("steps",))
+def _statics_core(scene: Scene, speed, loaded, steps: int = 1):
+    # loaded: a traced weight (1.0 or 0.0) on the mean loads, so that the operating point and the
+    # unloaded state of one drive share this compilation
     qi, inst, info = equilibrium(scene, speed=speed, steps=steps, loaded=loaded)
     return static_outputs(scene, qi, inst, speed, loaded), info
 
@@ -348,7 +350,8 @@ def static_outputs(scene, qi, inst, speed, loaded: bool = False):
         hubs=drive.hub_forces(q, scene, inst, speed),
         lengths=drive.full_span_lengths(q, scene),
         drive_torque=drive.drive_torque(qi, scene, inst, speed, loaded),
-        loads=drive.mean_body_loads(scene, inst, speed)[:, 2] if loaded else jnp.zeros(len(drive.body_names(scene))),
+        loads=(loaded * drive.mean_body_loads(scene, inst, speed)[:, 2] if loaded is not False
+               else jnp.zeros(len(drive.body_names(scene)))),
     )
 
 
@@ -357,9 +360,10 @@ def solve_at(scene: Scene, v: float, loaded: bool = False):
     residual norm) of the (canonical) scene, at its operating point with ``loaded`` (else
     unloaded); speed stepping when Newton from the installed state fails
     (:data:`RETRY_STEPS`).  Compiled once per scene structure (v is traced)."""
-    out, (conv, it, rn) = _statics_core(scene, v, loaded=loaded)
+    w = jnp.asarray(1.0 if loaded else 0.0)
+    out, (conv, it, rn) = _statics_core(scene, v, w)
     if not float(conv) > 0.5:
-        out, (conv, it, rn) = _statics_core(scene, v, steps=RETRY_STEPS, loaded=loaded)
+        out, (conv, it, rn) = _statics_core(scene, v, w, steps=RETRY_STEPS)
     return out, float(conv) > 0.5, int(it), float(rn)
 
 

@@ -358,10 +358,11 @@ def _travel_rates(scene: Scene, t):
 def steady_forces(q, scene: Scene, inst: Installation, speed=0.0, loaded: bool = False):
     """Forces on the full coordinates (N, N m) in the steady motion at belt speed ``speed`` (m/s):
     the conservative ones of :func:`full_forces`, and with ``loaded`` the operating point's mean
-    loads (:func:`beltjax.drive.forces.mean_body_loads`)."""
+    loads (:func:`beltjax.drive.forces.mean_body_loads`).  loaded: a bool, or a traced weight
+    (1.0 or 0.0) on those loads, so that one compiled statics serves both states."""
     F = full_forces(q, jnp.zeros_like(q), scene, inst, transport_speed(scene, inst, speed))
-    if loaded:
-        F = F.at[n_span_coordinates(scene):].add(mean_body_loads(scene, inst, speed).reshape(-1))
+    if loaded is not False:
+        F = F.at[n_span_coordinates(scene):].add(loaded * mean_body_loads(scene, inst, speed).reshape(-1))
     return F
 
 

@@ -46,6 +46,31 @@ def canonical(scene: Scene) -> Scene:
     return dataclasses.replace(scene, source="", description="")
 
 
+def statics_scene(scene: Scene, at_t: float | None = None) -> Scene:
+    """The part of a scene that statics and the modal analysis read, in one structure per drive
+    (so that scenes differing only in their transient tables share one compiled statics): no
+    file label, no ``[initial]``, ``[simulation]`` or ``[[span_load]]`` tables, and the
+    ``[[torque]]`` loads merged into one steady moment per loaded pulley (N m), the sum of the
+    means of the lasting loads (``at_t`` None: the operating point) or of the loads acting at
+    time ``at_t`` (s: a transient's start).  Idempotent."""
+    from beltjax.scene.spec import Initial, Simulation
+
+    def acting(load):
+        if at_t is None:
+            return load.t_end_s is None
+        return float(load.t_start_s) <= at_t and (load.t_end_s is None or float(load.t_end_s) > at_t)
+
+    torques = []
+    for name in dict.fromkeys(load.pulley for load in scene.torques):
+        mine = [load for load in scene.torques if load.pulley == name]
+        zero = 0.0 * jnp.asarray(mine[0].mean_Nm)
+        mean = sum((load.mean_Nm for load in mine if acting(load)), zero)
+        torques.append(dataclasses.replace(mine[0], mean_Nm=mean, amplitude_Nm=zero, frequency_hz=zero,
+                                           phase_deg=zero, t_start_s=zero, t_end_s=None))
+    return dataclasses.replace(scene, source="", description="", initial=Initial(), simulation=Simulation(),
+                               span_loads=(), torques=tuple(torques))
+
+
 def span_names(scene: Scene) -> list[str]:
     """Names of the spans in route order: "<from>-<to>" (span i leaves route entry i)."""
     return scene.route.span_names

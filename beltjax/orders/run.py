@@ -179,6 +179,11 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     (:func:`check`)."""
     scene = drive.canonical(scene)
     rpm = np.asarray(rpm, dtype=float).ravel()
+    given = settings or Settings()  # its choices checked before any work on the scene
+    if given.solver not in SOLVERS:
+        raise OrdersError(f"solver: {given.solver!r}; choose one of {', '.join(SOLVERS)}", "solver")
+    if given.start not in STARTS:
+        raise OrdersError(f"start: {given.start!r}; choose one of {', '.join(STARTS)}", "start")
     check(scene, rpm)
     if not (math.isfinite(settle_s) and settle_s >= 0):
         raise OrdersError(f"settle_s: must be a finite time >= 0 s, got {settle_s!r}", "settle_s")
@@ -187,10 +192,6 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         parameters.check(scene, k)
         parameters.check_value(k, val)
     settings = for_scene(scene, settings)
-    if settings.solver not in SOLVERS:
-        raise OrdersError(f"solver: {settings.solver!r}; choose one of {', '.join(SOLVERS)}", "solver")
-    if settings.start not in STARTS:
-        raise OrdersError(f"start: {settings.start!r}; choose one of {', '.join(STARTS)}", "start")
     if not MIN_SAMPLES <= settings.samples <= MAX_SAMPLES:
         raise OrdersError(f"samples: {settings.samples} samples per cycle; give {MIN_SAMPLES} to {MAX_SAMPLES}", "samples")
     need = 2 * settings.max_order * settings.revolutions + 2

@@ -153,6 +153,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     speed at the operating point: :mod:`beltjax.critical`) as 1.0 / 0.0; ``min_span_force_N``: the
     least force of a span on its pulleys over the cycle (N; with ``transport`` its tension less
     rhoA c^2 lam: at or below 0 the belt no longer presses on the pulleys); ``t_end_s``; ``steps``."""
+    if settings.start not in STARTS:  # over_speed's callers reach here unchecked
+        raise ValueError(f"start: {settings.start!r}; choose one of {', '.join(STARTS)}")
     path = speed_path(scene)
     sign = jnp.where(parameters.get_value(scene, path) < 0, -1.0, 1.0)  # the scene's sense of rotation
     sc = parameters.set_values(scene, {**values, path: sign * jnp.abs(rpm)})
@@ -177,8 +179,6 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     f = vector_field(sc, inst)
     if settings.start == "linear":
         y0 = linear_periodic_start(f, y0, period, K)
-    elif settings.start != "operating_point":  # over_speed's callers reach here unchecked
-        raise ValueError(f"start: {settings.start!r}; choose one of {', '.join(STARTS)}")
     term = diffrax.ODETerm(f)
     dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
     ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
