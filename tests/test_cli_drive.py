@@ -1,16 +1,14 @@
 """The drive commands `beltjax statics`, `modal`, `campbell` and `simulate`: outputs, and one-line errors.
 
-The full runs are subprocesses of the real command (each compiles; they share one
-persistent compile cache through BELTJAX_CACHE); the bad-input cases stop before
-any compilation and run in-process.
+The full runs call the command's entry function in this process (they share its compiled
+statics; each writes its persistent compile cache under BELTJAX_CACHE, a temporary folder);
+the bad-input cases stop before any compilation.  tests/test_cli.py runs the installed
+``beltjax`` program.
 """
 
 import json
 import math
-import os
 import pathlib
-import subprocess
-import sys
 import tomllib
 
 import numpy as np
@@ -20,7 +18,6 @@ from beltjax.cli import main
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 T200 = REPO / "scenes" / "two_pulley_T200.toml"
-TIMEOUT = 900  # s per command: a compile on a busy 2-core machine, never a hang forever
 
 
 @pytest.fixture(scope="module")
@@ -34,21 +31,23 @@ def _use_cache(cache, monkeypatch):
     monkeypatch.setenv("BELTJAX_CACHE", str(cache))
 
 
-def run_cli(*args, cache):
-    env = dict(os.environ, BELTJAX_CACHE=str(cache))
-    env.pop("BELTJAX_DEBUG", None)
-    proc = subprocess.run([sys.executable, "-m", "beltjax.cli", *map(str, args)], capture_output=True, text=True,
-                          timeout=TIMEOUT, env=env, cwd=REPO)
-    assert proc.returncode == 0, proc.stderr
-    return proc
+def run_cli(*args, cache, capsys):
+    """The command run in this process (``beltjax.cli.main``, as the entry point calls it): its
+    exit status 0, and what it printed (``.stdout``, ``.stderr``).  In-process, the four commands
+    share their compiled statics; tests/test_cli.py runs the installed entry point itself."""
+    capsys.readouterr()
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    return out
 
 
 # --------------------------------------------------------------------------- full runs
 
 
-def test_statics_command(tmp_path, cache):
+def test_statics_command(tmp_path, cache, capsys):
     out = tmp_path / "st"
-    proc = run_cli("statics", T200, "--out", out, cache=cache)
+    proc = run_cli("statics", T200, "--out", out, cache=cache, capsys=capsys)
     data = json.loads((out / "statics.json").read_text())
     for key in ("span_names", "span_tensions_N", "span_lengths_m", "belt_length_m", "installation_tension_N",
                 "stretch", "hub_forces_N", "hub_force_magnitudes_N", "wrap_angles_deg", "speed_m_s"):
@@ -64,12 +63,12 @@ def test_statics_command(tmp_path, cache):
     assert F["crank"][0] < 0  # the belt pulls the crank towards the alternator (smaller x)
     assert "tensioner_angle_deg" not in data
     assert (out / "layout.png").stat().st_size > 10_000
-    assert "crank-alternator" in proc.stdout and "200.00" in proc.stdout and "statics.json" in proc.stdout
+    assert "crank-alternator" in proc.out and "200.00" in proc.out and "statics.json" in proc.out
 
 
-def test_modal_command(tmp_path, cache):
+def test_modal_command(tmp_path, cache, capsys):
     out = tmp_path / "mo"
-    proc = run_cli("modal", T200, "--modes", "10", "--out", out, cache=cache)
+    proc = run_cli("modal", T200, "--modes", "10", "--out", out, cache=cache, capsys=capsys)
     data = json.loads((out / "modal.json").read_text())
     f, labels = data["frequencies_hz"], data["labels"]
     assert data["stable"] is True and len(f) == len(labels) == 10
@@ -81,12 +80,12 @@ def test_modal_command(tmp_path, cache):
     assert abs(f[1] - f1) < 0.02 * f1 and abs(f[2] - f[1]) < 1e-3 * f[1]
     assert all("transverse" in lab for lab in labels[1:3])
     assert (out / "modes.png").stat().st_size > 10_000
-    assert "1st transverse" in proc.stdout and "modal.json" in proc.stdout
+    assert "1st transverse" in proc.out and "modal.json" in proc.out
 
 
-def test_campbell_command(tmp_path, cache):
+def test_campbell_command(tmp_path, cache, capsys):
     out = tmp_path / "ca"
-    proc = run_cli("campbell", T200, "--rpm", "0:2000:500", "--modes", "6", "--out", out, cache=cache)
+    proc = run_cli("campbell", T200, "--rpm", "0:2000:500", "--modes", "6", "--out", out, cache=cache, capsys=capsys)
     data = json.loads((out / "campbell.json").read_text())
     assert data["rpm"] == [0.0, 500.0, 1000.0, 1500.0, 2000.0]
     F = np.array(data["frequencies_hz"], dtype=float)
@@ -101,25 +100,25 @@ def test_campbell_command(tmp_path, cache):
         assert F[-1, 1] < 0.99 * F[0, 1] and np.all(F[-1, 1:] > 0.5 * F[0, 1:])
     else:
         np.testing.assert_allclose(F, F[:1].repeat(5, axis=0), rtol=1e-8)  # independent of speed
-        assert "transport" in proc.stdout  # the note saying so
+        assert "transport" in proc.out  # the note saying so
     assert data["crossings"], "the first transverse modes (~30 Hz) cross 2x and 3x below 2000 rpm"
     for c in data["crossings"]:
         assert 0 <= c["rpm"] <= 2000 and c["order"] in (1.0, 2.0, 3.0)
         assert abs(c["frequency_hz"] - c["order"] * c["rpm"] / 60) < 1e-6
         assert c["curve_label"] == data["labels"][c["mode"] - 1] and "transverse" in c["label"]
     assert (out / "campbell.png").stat().st_size > 10_000
-    assert "crossings" in proc.stdout and "campbell.json" in proc.stdout
-    assert "followed across speeds by its shape" in proc.stdout and "sorted" not in proc.stdout
-    assert "campbell: 5/5 speeds" in proc.stderr  # progress goes to stderr
+    assert "crossings" in proc.out and "campbell.json" in proc.out
+    assert "followed across speeds by its shape" in proc.out and "sorted" not in proc.out
+    assert "campbell: 5/5 speeds" in proc.err  # progress goes to stderr
 
 
-def test_simulate_command(tmp_path, cache):
+def test_simulate_command(tmp_path, cache, capsys):
     """Rotational model of the T = 200 N bench, alternator released from a 2 deg rotation."""
     text = T200.read_text().replace('fidelity = "ancf"', 'fidelity = "rotational"')
     scene = tmp_path / "release.toml"
     scene.write_text(text + "\n[initial]\nrotation_deg = { alternator = 2.0 }\n")
     out = tmp_path / "si"
-    proc = run_cli("simulate", scene, "--t-end", "0.25", "--dt", "2e-4", "--out", out, cache=cache)
+    proc = run_cli("simulate", scene, "--t-end", "0.25", "--dt", "2e-4", "--out", out, cache=cache, capsys=capsys)
     data = json.loads((out / "simulation.json").read_text())
     # no [simulation] solver: the rotational default, adaptive Dopri8 (--dt is its first step)
     assert data["meta"]["solver"] == "dopri8" and data["meta"]["fidelity"] == "rotational"
@@ -136,8 +135,8 @@ def test_simulate_command(tmp_path, cache):
     assert np.all(np.isfinite(npz["hub_forces_N"]))
     for png in ("simulation.png", "spectra.png"):
         assert (out / png).stat().st_size > 10_000
-    assert "dominant" in proc.stdout and "simulation.npz" in proc.stdout
-    assert "simulate [" in proc.stderr  # the progress bar goes to stderr
+    assert "dominant" in proc.out and "simulation.npz" in proc.out
+    assert "simulate [" in proc.err  # the progress bar goes to stderr
 
 
 # --------------------------------------------------------------------------- bad input (no compilation)
