@@ -53,12 +53,13 @@ def statics_scene(scene: Scene, at_t: float | None = None) -> Scene:
     ``[[torque]]`` loads merged into one steady moment per loaded pulley (N m), the sum of the
     means of the lasting loads (``at_t`` None: the operating point) or of the loads acting at
     time ``at_t`` (s: a transient's start).  Idempotent."""
+    from beltjax.drive.forces import _window  # a load's time window, as the transients apply it
     from beltjax.scene.spec import Initial, Simulation
 
     def acting(load):
         if at_t is None:
             return load.t_end_s is None
-        return float(load.t_start_s) <= at_t and (load.t_end_s is None or float(load.t_end_s) > at_t)
+        return float(_window(at_t, load.t_start_s, load.t_end_s)) > 0.5
 
     torques = []
     for name in dict.fromkeys(load.pulley for load in scene.torques):
