@@ -13,7 +13,7 @@ from beltjax import critical, drive, schema
 from beltjax.drive import Installation, couplings
 from beltjax.scene import TENSIONER, Scene
 from beltjax.drive.effects import effects_of
-from beltjax.statics import StaticsError, check_installation, check_solved, install_compiled, solve_at
+from beltjax.statics import StaticsError, check_installation, check_solved, solve_at
 
 
 @dataclass
@@ -128,22 +128,22 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     validate.check_scene(scene)
     v = float(drive.belt_speed(scene)) if speed is None else schema.number(speed, "speed", "drive.speed")
     scene = drive.statics_scene(scene)  # one compiled statics per drive, whatever its transient tables
-    inst = install_compiled(scene)
-    check_installation(scene, inst)
     if loaded is None:
         loaded = drive.has_mean_loads(scene)
-    res = _state(scene, v, loaded, allow_supercritical)
+    # the installation is checked as it comes out of the statics' own program (no compilation of its own)
+    res = _state(scene, v, loaded, allow_supercritical, check=lambda inst: check_installation(scene, inst))
     if loaded and with_unloaded:
         res.unloaded = _state(scene, v, False, True).to_json()
     return res
 
 
-def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool) -> StaticResult:
-    """:func:`analyse_statics` of a checked, canonical scene at belt speed v (m/s)."""
+def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, check=None) -> StaticResult:
+    """:func:`analyse_statics` of a checked, canonical scene at belt speed v (m/s); check: see
+    :func:`beltjax.statics.solve_at`."""
     from beltjax import friction
 
     what = "operating point" if loaded else "unloaded state"
-    out, conv, it, rn = solve_at(scene, v, loaded)
+    out, conv, it, rn = solve_at(scene, v, loaded, check)
     if not conv:
         vc = critical.critical_speed(scene, v) if v != 0.0 else None
         if vc is not None:

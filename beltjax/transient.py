@@ -276,10 +276,10 @@ class SimulationResult:
     """Time histories of a transient.
 
     t (nt,) s; channels: name -> array (nt,), (nt, k) or (nt, k, 2) in the units of
-    :data:`UNITS`; columns: name -> labels of the k columns; meta: solver, step, steps,
-    wall and compile times (s), scene, slack_spans (:func:`slack_spans`), supercritical_spans
-    (:func:`supercritical_spans`), excitation_warnings (:mod:`beltjax.excitation`); y: the state
-    (nt, 2 n_i) for further use.
+    :data:`UNITS`; columns: name -> labels of the k columns; meta: solver, step, steps, wall,
+    set-up (statics and the start, before the first chunk) and first-chunk times (s), scene,
+    slack_spans (:func:`slack_spans`), supercritical_spans (:func:`supercritical_spans`),
+    excitation_warnings (:mod:`beltjax.excitation`); y: the state (nt, 2 n_i) for further use.
     """
 
     t: np.ndarray
@@ -393,6 +393,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     dt0 = jnp.asarray(dt, dtype=y.dtype)
     t0 = time.perf_counter()
     states = _start(scene, inst, y, jnp.zeros_like(dt0), dt0, dtmax)
+    setup_s = time.perf_counter() - wall0  # statics and the integrator's start, before the first chunk
     failure = None
     for c in range(n_chunks):
         k0 = c * per_chunk
@@ -440,16 +441,15 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     ys = np.concatenate(ys_all)
     keep = t <= t_end + 1e-12
     t, ys = t[keep], ys[keep]
+    run = dict(dt_s=dt, output_dt_s=out_dt, steps=steps, wall_s=wall, setup_s=setup_s, first_chunk_s=compile_s)
     if failure is not None:  # the outputs up to the failure go with the error (``exc.partial``)
         exc = TransientError(f"{failure} (outputs up to t = {t[-1]:.4g} s kept)")
         try:
-            exc.partial = _result(scene, inst, t, ys, forcing, fixed, dict(
-                dt_s=dt, output_dt_s=out_dt, steps=steps, wall_s=wall, first_chunk_s=compile_s, failure=failure))
+            exc.partial = _result(scene, inst, t, ys, forcing, fixed, dict(run, failure=failure))
         except TransientError:
             exc.partial = None
         raise exc
-    return _result(scene, inst, t, ys, forcing, fixed, dict(dt_s=dt, output_dt_s=out_dt, steps=steps, wall_s=wall,
-                                                            first_chunk_s=compile_s))
+    return _result(scene, inst, t, ys, forcing, fixed, run)
 
 
 def _result(scene: Scene, inst, t, ys, forcing, fixed: bool, run: dict) -> SimulationResult:
@@ -482,6 +482,7 @@ def _result(scene: Scene, inst, t, ys, forcing, fixed: bool, run: dict) -> Simul
         t_end_s=float(t[-1]),
         steps=run["steps"],
         wall_s=run["wall_s"],
+        setup_s=run["setup_s"],
         first_chunk_s=run["first_chunk_s"],
         installation_tension_N=float(inst.tension),
         slack_spans=slack_spans(t, chans["span_tensions_N"], cols["span_tensions_N"]),
