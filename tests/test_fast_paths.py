@@ -130,8 +130,11 @@ def test_free_drive_transient_linearises_to_the_modal_analysis():
 
     inst, qi, qd = transient.initial_state(sc)
     rm = drive.reduced_mass(sc, inst)
-    f = lambda x, xd: (lambda a: (a, a))(drive.reduced_accelerations(x, xd, sc, inst, rm, t=0.0))  # noqa: E731
-    (dq, dqd), acc = jax.jit(jax.jacfwd(f, argnums=(0, 1), has_aux=True))(qi, qd)  # one compilation
+    def f(x, xd):  # the accelerations, also as the auxiliary output: values and Jacobians from one program
+        a = drive.reduced_accelerations(x, xd, sc, inst, rm, t=0.0)
+        return a, a
+
+    (dq, dqd), acc = jax.jit(jax.jacfwd(f, argnums=(0, 1), has_aux=True))(qi, qd)
     n = qi.shape[0]
     A = np.block([[np.zeros((n, n)), np.eye(n)], [np.asarray(dq), np.asarray(dqd)]])
     ev = np.linalg.eigvals(A)
