@@ -290,7 +290,7 @@ def _static_residual(qi, scene: Scene, inst: Installation, speed, loaded):
     it (residual, Jacobian, line search, the implicit derivative) trace the drive's equations once
     per compilation and reuse the traced program (XLA inlines it; the compiled statics is the
     same): measured on the eight-pulley hybrid drive, the statics' tracing fell by 15-35 %
-    (three interleaved pairs, 2026-11-27)."""
+    (three interleaved pairs, 2026-11-27, an ad hoc measurement: benchmarks/README §5i)."""
     return drive.static_residual(qi, scene, inst, speed, loaded)
 
 
