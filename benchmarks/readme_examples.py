@@ -57,6 +57,7 @@ EXAMPLES: dict[str, tuple[str, dict[str, str]]] = {
                                   "layout_after.png": "optimize_layout_after.png",
                                   "history.png": "optimize_history.png"}),
     "statics_fead": ("statics scenes/fead_8pulley.toml", {"layout.png": "layout_fead_8pulley.png"}),
+    "statics_shigley": ("statics scenes/shigley_flat_belt.toml", {}),
     "campbell_fead": ("campbell scenes/fead_8pulley.toml --rpm 600:6000:100",
                       {"campbell.png": "campbell_fead_8pulley.png"}),
     "simulate_fead": ("simulate scenes/fead_8pulley.toml --t-end 1",

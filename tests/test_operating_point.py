@@ -24,7 +24,7 @@ from beltjax import drive, friction, statics
 from beltjax.cli import main
 from beltjax.scene import load_scene, loads_scene
 
-from _scenes import scene_text
+from _scenes import SCENES, scene_text
 
 M_ALT = 6.0  # N m on the alternator (CCW: against the clockwise travel)
 
@@ -308,3 +308,31 @@ def test_modes_are_about_the_operating_point():
     qi, f, f0 = (np.asarray(x) for x in both(sc))
     assert np.allclose(qi, statics.analyse_statics(sc).qi, rtol=1e-9, atol=1e-12)
     assert np.all(np.isfinite(f)) and np.max(np.abs(f0 / f - 1)) > 1e-3
+
+
+def test_published_flat_belt_drive_shigley_example_17_1():
+    """A published slip check: Shigley's Mechanical Engineering Design, Example 17-1 (scenes/
+    shigley_flat_belt.toml).  The book's numbers, from its inputs in its units: wrap on the 6 in
+    driver pi - 2 asin((18 - 6) / (2 x 96)) = 3.0165 rad, torque T = 63025 H K_s n_d / n =
+    742.8 lbf in, centrifugal tension F_c = w / g (V / 60)^2 = 25.6 lbf (w = 0.393 lbf/ft,
+    V = 2749 ft/min), tight side F_1 = 420 lbf (the allowable), slack side F_2 = F_1 - 2 T / d =
+    172.4 lbf, friction development f' = ln((F_1 - F_c) / (F_2 - F_c)) / phi = 0.328 against
+    f = 0.8.  The operating point must give them from the drive's geometry, masses and load
+    alone: the torque and tensions to 0.1 %, F_c to 0.5 %, f' to the book's three digits."""
+    LBF, IN = 4.4482216152605, 0.0254
+    phi = math.pi - 2 * math.asin(12 / 192)
+    T = 63025 * 15 * 1.25 * 1.1 / 1750  # lbf in
+    w, V = 12 * 0.042 * 6 * 0.13, math.pi * 6 * 1750 / 12  # lbf/ft, ft/min
+    assert (round(w, 3), round(V)) == (0.393, 2749)
+    Fc = 0.393 / 32.17 * (2749 / 60) ** 2  # with the book's rounded w and V
+    F1, F2 = 420.0, 420.0 - 2 * T / 6
+    assert (round(phi, 4), round(T, 1), round(Fc, 1), round(F2, 1)) == (3.0165, 742.8, 25.6, 172.4)  # as printed
+    r = statics.analyse_statics(load_scene(SCENES / "shigley_flat_belt.toml"))
+    f = r.friction["driver"]
+    assert math.radians(f["wrap_deg"]) == pytest.approx(phi, abs=1e-4)
+    assert -r.drive_torque_Nm / (LBF * IN) == pytest.approx(T, rel=1e-3)
+    slack, tight = np.asarray(r.span_tensions_N) / LBF  # driver-driven leaves the driver: the slack side
+    assert tight == pytest.approx(F1, rel=1e-3) and slack == pytest.approx(F2, rel=1e-3)
+    assert np.allclose((np.asarray(r.span_tensions_N) - np.asarray(r.span_forces_N)) / LBF, Fc, rtol=5e-3)
+    assert abs(f["friction_needed"] - 0.328) < 1e-3
+    assert f["slip_margin"] == pytest.approx(1 - f["friction_needed"] / 0.8, rel=1e-12) and f["slip_margin"] > 0.5
