@@ -18,7 +18,9 @@ one place: the spring with its preload, the end stops, and dry friction.
   spring up, i.e. the belt pushes it away from its free angle, over the moment while the spring
   returns it: T_f 2a / (1 + a) against T_f 2 / (1 + a)), omega_r ``friction_speed`` (rad/s).
   Why this form: it has no state of its own (a bristle or LuGre model adds one per contact and a
-  pre-sliding stiffness that is a parameter nobody measures for tensioners), it is smooth, so
+  pre-sliding stiffness that is a parameter nobody measures for tensioners; Dahl's bristle law,
+  tried, came no closer to the Coulomb limit for the explicit solver's steps than a larger
+  omega_r: benchmarks/README.md section 5g), it is smooth, so
   gradients and implicit solvers see a Jacobian, and it slides at every speed: a stuck arm
   creeps at the speed where tanh(omega / omega_r) T_f balances the net moment, which is below
   omega_r.  What the regularisation changes is measured in tests/test_tensioner_friction.py
