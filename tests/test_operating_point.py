@@ -6,7 +6,8 @@ by exactly M / R across a loaded pulley, the idler's by its bearing drag), the p
 the steady motion (drive torque times its speed plus every load's power is zero), both
 fidelities agreeing, the gradient of the operating point against finite differences, the
 unloaded state kept beside it, the capstan demand against Euler-Eytelwein written out, the
-ribbed belt's wedge on front- but not back-side pulleys, and the command's outputs.
+ribbed belt's wedge on front- but not back-side pulleys, the command's outputs, and a published
+case (Shigley's flat-belt Example 17-1: tensions, centrifugal tension and friction development).
 """
 
 from __future__ import annotations
