@@ -10,8 +10,10 @@ coefficient ``mu'`` is the belt's ``friction_coefficient`` (or the pulley's own)
 or a ribbed belt's flat back, and ``mu / sin(beta / 2)`` where the ribs of a V or ribbed belt
 (``belt.groove_angle_deg`` = beta) run in the pulley's grooves: the wedge multiplies the normal
 force.  The slip margin is ``1 - mu_needed / mu'``: 1 at no load, 0 at the capstan limit, below 0
-the arc would slip.  The whole arc is then sliding (creep at the limit); the creep itself,
-the speed it costs and a sliding belt's dynamics are not modelled here.  Units: SI, angles rad.
+the arc would slip.  The whole arc is then sliding (creep at the limit).  Classical creep
+theory gives each arc's sliding arc, the speed a driven pulley loses to creep, and the belt a
+running belt's arcs hold (:func:`arc_belt_moved`, the compatibility the operating point solves);
+a sliding belt's dynamics is :mod:`beltjax.drive.belt_slip`'s.  Units: SI, angles rad.
 """
 
 from __future__ import annotations
@@ -94,6 +96,40 @@ def creep_speed_loss(stretches, drive_index: int, xp=jnp):
     (span i leaves entry i) along the last axis."""
     lam_in = xp.roll(xp.asarray(stretches), 1, axis=-1)
     return 1.0 - lam_in / lam_in[..., drive_index : drive_index + 1]
+
+
+def arc_belt_moved(forces, stretches, wrap, radii, stretch0, available, xp=jnp):
+    """Belt (m) each wrapped arc of a running belt has handed its exit span since installation,
+    by classical creep theory: the compatibility of a running belt (Rubin 2000, "An exact
+    solution for steady motion of an extensible belt in multipulley belt drive systems").
+
+    As installed, every arc holds the belt at the installation stretch lam_0.  Once the belt
+    runs, the belt on an arc is the belt that ran on at its entry: it adheres there at the
+    arriving span's stretch lam_in, and over the sliding arc at the exit (ln(F_out / F_in) /
+    mu', :func:`sliding_arcs`) its force goes exponentially from F_in to F_out (the capstan
+    law) and its stretch with it, to the exit span's lam_out.  An arc of radius R and wrap
+    theta then holds R [theta (lam_in - lam_0) + phi_s g (lam_out - lam_in)] less belt (to first
+    order in the strains) than as installed, g = 1 / ln r - 1 / (r - 1) the sliding arc's mean
+    share of the step (r = F_out / F_in; g -> 1/2 as r -> 1), and hands it to its exit span.
+    A drive whose spans' tensions differ (a loaded one) so holds its tensions at a level other
+    than the one that keeps the arcs as installed: both spans' tensions of a two-pulley drive
+    rise, since the tight arc's sliding zone holds less of the slack belt than the slack one's.
+
+    forces: each span's force on the pulleys (N, T - rhoA c^2 lam, route order: span i leaves
+    entry i); stretches: the spans' l / L0 (-); wrap (rad) and radii (m) per entry; stretch0:
+    lam_0 (-); available: mu' per entry (NaN where none is given: no sliding arc, the limit of
+    a grip without bound).  An arc past the capstan limit slides over its whole wrap.  Smooth
+    where the arcs hold (C1 where F_in = F_out); xp as :func:`demand`."""
+    forces, stretches = xp.asarray(forces), xp.asarray(stretches)
+    f_in, lam_in = xp.roll(forces, 1, axis=-1), xp.roll(stretches, 1, axis=-1)
+    ok = (forces > 0) & (f_in > 0)
+    x = xp.where(ok, xp.log(xp.where(ok, forces, 1.0) / xp.where(ok, f_in, 1.0)), 0.0)  # ln(F_out / F_in)
+    mu = xp.where(xp.isnan(available), xp.inf, available)
+    slide = xp.minimum(xp.abs(x) / mu, wrap)
+    small = xp.abs(x) < 1e-4
+    xs = xp.where(small, 1.0, x)
+    share = xp.where(small, 0.5 - x / 12.0, 1.0 / xs - 1.0 / xp.expm1(xs))
+    return radii * (wrap * (lam_in - stretch0) + slide * share * (stretches - lam_in))
 
 
 def assess(scene: Scene, forces, wrap, stretches=None, drive_index: int = 0) -> dict:

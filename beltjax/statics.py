@@ -28,7 +28,10 @@ from the installed straight-span state, with a backtracking line search and,
 for hard cases, speed (load) stepping; implicit differentiation again through
 ``custom_root``, so the equilibrium is differentiable with respect to every
 scene parameter.  At a belt speed the equilibrium is the steady motion (the
-centrifugal terms of the moving belt included when ``transport`` is listed).
+centrifugal terms of the moving belt included when ``transport`` is listed), and the belt's
+compatibility, with ``belt_slip`` listed, is a running belt's: each arc holds the belt that ran
+on there by classical creep theory (:func:`beltjax.friction.arc_belt_moved`), solved with the
+equilibrium (``inst.creep``); a belt that grips (no ``belt_slip``) keeps its arcs as installed.
 """
 
 from __future__ import annotations
@@ -153,7 +156,7 @@ def install(scene: Scene) -> Installation:
     return Installation(
         arm_angle=theta, stretch=lam, tension=T, belt_length=L, centers=centers, radii=radii,
         span_start=g.span_start, span_end=g.span_end, span_tangent=g.span_tangent,
-        span_length=g.span_length, wrap=g.wrap,
+        span_length=g.span_length, wrap=g.wrap, creep=jnp.zeros_like(g.span_length),
     )
 
 
@@ -294,45 +297,79 @@ def _static_residual(qi, scene: Scene, inst: Installation, speed, loaded):
     return drive.static_residual(qi, scene, inst, speed, loaded)
 
 
-def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, steps: int = 1, loaded: bool = False):
+@eqx.filter_jit
+def _running_creep(qi, scene: Scene, inst: Installation, speed):
+    """The belt each arc hands its exit span in the steady motion at belt speed ``speed`` (m/s)
+    about q_i (m, :func:`beltjax.friction.arc_belt_moved` of the spans' forces and stretches);
+    zero at rest, where the belt has not run over the arcs since it was installed."""
+    from beltjax import critical, friction  # critical imports this module
+
+    tensions, lam = critical.span_state(scene, qi, inst)  # the spans' forces as the equations see them
+    c = drive.effects_of(scene).transport_speed(drive.transport_speed(scene, inst, speed))
+    forces = critical.pulley_forces(tensions, lam, c, scene.belt.rhoA)
+    moved = friction.arc_belt_moved(forces, lam, drive.wraps(qi, scene, inst), inst.radii, inst.stretch,
+                                    friction.effective_coefficients(scene))
+    return jnp.where(jnp.abs(speed) > 0, moved, 0.0)
+
+
+def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, steps: int = 1, loaded: bool = False,
+                running: bool = True):
     """Static (steady-motion) equilibrium: independent coordinates and diagnostics.
 
     speed: belt speed (m/s; default from the drive pulley's speed_rpm);
     steps: speed (load) steps from rest to ``speed`` (the mean loads stepped with it);
     loaded: the operating point (the scene's mean loads act: :func:`beltjax.drive.mean_body_loads`)
-    rather than the unloaded state.  Returns
-    ``(qi, inst, (converged, iterations, residual_norm))`` (floats; converged is 1.0 or 0.0); differentiable in
-    every scene parameter by the implicit function theorem.
+    rather than the unloaded state.  With ``belt_slip`` listed (a belt that creeps) a running
+    belt (speed != 0) is solved with its compatibility: the belt on each arc is the belt that ran
+    on there, at its arriving span's stretch and over the sliding arc at the exit going to its
+    exit span's (:func:`beltjax.friction.arc_belt_moved`), so each arc hands its exit span the
+    belt it no longer holds (``inst.creep``, m, solved together with q_i); at rest, without
+    ``belt_slip`` (the belt grips every rim and cannot creep) or with running=False the arcs
+    keep the belt as ``inst`` has it (as installed).  Returns ``(qi, inst, (converged, iterations, residual_norm))``, inst with its
+    ``creep`` (floats; converged is 1.0 or 0.0); differentiable in every scene parameter by the
+    implicit function theorem.
     """
+    from beltjax.drive import belt_slip
+
     inst = install(scene) if inst is None else inst
     speed = drive.belt_speed(scene) if speed is None else speed
     full0 = drive.installed_coordinates(scene, inst)
     dofs = drive.static_dofs(scene)
-    q0 = full0[dofs]
+    k = len(dofs)
+    running = running and belt_slip.n_states(scene) > 0  # a belt that creeps (else it grips: arcs kept)
+    z0 = jnp.concatenate([full0[dofs], inst.creep]) if running else full0[dofs]
 
-    def residual(q, v):
-        return _static_residual(full0.at[dofs].set(q), scene, inst, v, loaded)[dofs]
+    def unpack(z):
+        return full0.at[dofs].set(z[:k]), inst._replace(creep=z[k:]) if running else inst
 
-    def f(q):
-        return residual(q, speed)
+    def residual(z, v):
+        qi, at = unpack(z)
+        forces = _static_residual(qi, scene, at, v, loaded)[dofs]
+        if not running:
+            return forces
+        return jnp.concatenate([forces, z[k:] - _running_creep(qi, scene, at, v)])
 
-    def solve(f, q_init):
+    def f(z):
+        return residual(z, speed)
+
+    def solve(f, z_init):
         if steps == 1:
-            return _newton(f, q_init)
+            return _newton(f, z_init)
 
-        def stage(q, frac):
+        def stage(z, frac):
             g = lambda x: residual(x, speed * frac)  # noqa: E731
-            q, info = _newton(g, q)
-            return q, info
+            z, info = _newton(g, z)
+            return z, info
 
-        q, infos = jax.lax.scan(stage, q_init, jnp.arange(1, steps + 1) / steps)
-        return q, jax.tree.map(lambda a: a[-1], infos)
+        z, infos = jax.lax.scan(stage, z_init, jnp.arange(1, steps + 1) / steps)
+        return z, jax.tree.map(lambda a: a[-1], infos)
 
     def tangent_solve(g, y):
         return jnp.linalg.solve(jax.jacfwd(g)(y), y)
 
-    q, info = jax.lax.custom_root(f, q0, solve, tangent_solve, has_aux=True)
-    return full0.at[dofs].set(q), inst, info
+    z, info = jax.lax.custom_root(f, z0, solve, tangent_solve, has_aux=True)
+    qi, at = unpack(z)
+    return qi, at, info
 
 
 # --------------------------------------------------------------------------- compiled statics

@@ -91,7 +91,8 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         stiff = jnp.stack([d.stiffness for d in scene.decouplers])
         out["decoupler_moments_Nm"] = couplings.decoupler_moment(couplings.windups(B[:n, 2], B[rows, 2], scene), stiff)
     if z is not None:  # the belt's sliding over each rim (gross slip, creep) and its friction power
-        out["slip_speeds_m_s"], out["creep_speeds_m_s"] = z_dot[:n], z_dot[n:]
+        # creep: the belt an arc feeds its exit span beyond its rim's, u' + d' (the arc's belt replaced)
+        out["slip_speeds_m_s"], out["creep_speeds_m_s"] = z_dot[:n], z_dot[n:2 * n] + z_dot[2 * n:]
         out["friction_power_W"] = belt_slip.dissipation(forces, z_dot, n)
     if drive.spans_of(scene).massive:  # the end nodes' offsets from the tangent points (not an output channel)
         out["_end_slides_m"] = drive.end_slides(qi, scene, inst, t)

@@ -2,14 +2,17 @@
 
 Without this effect the belt sticks to every rim: each pulley's rim feeds its exit span and
 drains its entry span at its own speed, so every rim runs at the belt's speed and an arc
-carries any tension ratio.  With it, each route entry i has two slip states (m, along the
-belt in its direction of travel, relative to the rim):
+carries any tension ratio, and each arc holds the belt it held when the run started.  With it,
+each route entry i has three slip states (m, along the belt in its direction of travel,
+relative to the rim):
 
 - ``g_i``, gross slip: how far the belt on the arc has slid over the rim as a whole;
-- ``u_i``, creep: how much more belt has left the arc into its exit span than the rim carried.
+- ``u_i``, creep: how much more belt has left the arc into its exit span than the rim carried;
+- ``d_i``, the arc's exchange: how much more belt the arc has handed its exit span than at the
+  start (beyond ``inst.creep``, the running belt's at the operating point).
 
 The kinematic map (:func:`beltjax.drive.kinematics.full_coordinates`) slides span i's start
-node (the exit of entry i) by ``g_i + u_i`` and its end node (the entry of entry i + 1) by
+node (the exit of entry i) by ``g_i + u_i + d_i`` and its end node (the entry of entry i + 1) by
 ``g_{i+1}``, so every span's length, tension and force on the pulleys, and through them the
 pulleys' torques, follow the slip; nothing else changes.  Their rates:
 
@@ -33,10 +36,18 @@ pulleys' torques, follow the slip; nothing else changes.  Their rates:
   complementarity problem; the scale C_0 is fixed, so a span that goes slack (C -> 0) leaves the
   arc a finite, viscous grip rather than an infinitely stiff one.  What it changes is measured
   in tests/test_belt_slip.py and its cost in benchmarks/bench_belt_slip.py.  The friction power
-  ``-dF g'`` is dissipated.
+  ``-dF g'`` is dissipated;
+- **the arc's belt** (the running belt's compatibility, :func:`beltjax.friction.arc_belt_moved`):
+  the belt on an arc is the belt that ran on there, so as the spans' tensions change the arc's
+  belt is replaced over the time the belt takes to cross it, R theta / v.  ``d_i`` follows the
+  belt the arc would hand its exit span at the present forces and stretches, D_i, with a
+  first-order lag of the crossing's mean delay: ``d_i' = 2 |v_i| / (R_i theta_i) (D_i -
+  inst.creep_i - d_i)`` (theta_i the present wrap).  A steady drive so ends in the statics'
+  operating point (which solves D = inst.creep), and a drive at rest keeps its arcs.
 
 Limits: rotational model only (the hybrid model's arcs are Eulerian contacts without their
-own belt material); the wrap is the installed one (an arm swing changes it a little); the
+own belt material); the capacity's wrap is the installed one (an arm swing changes it a
+little); the arc's belt is replaced with a first-order lag, not the exact transport delay; the
 friction law sees the spans' elastic forces (belt damping acts on their whole stretching rate,
 the slip's included); the wrapped belt's inertia stays with its pulley (about 1 % of a small
 pulley's) while it slides.  Units: SI.
@@ -56,8 +67,8 @@ ROUNDING = 1e-3
 
 
 def n_states(scene: Scene) -> int:
-    """Slip states of ``scene``: 2 per route entry with ``belt_slip`` listed, else 0."""
-    return 2 * len(scene.route.order) if "belt_slip" in effects_of(scene) else 0
+    """Slip states of ``scene``: 3 per route entry with ``belt_slip`` listed, else 0."""
+    return 3 * len(scene.route.order) if "belt_slip" in effects_of(scene) else 0
 
 
 def initial(scene: Scene, dtype=jnp.float64):
@@ -101,9 +112,9 @@ def rotations(scene: Scene) -> int:
 
 def node_shifts(z, n: int):
     """How far each span's start and end node slide along it (m), each (n,), for slip states
-    z = (g, u) (2n,) m: start by g_i + u_i, end by g_{i+1}."""
-    g, u = z[:n], z[n:]
-    return g + u, jnp.roll(g, -1)
+    z = (g, u, d) (3n,) m (or their rates): start by g_i + u_i + d_i, end by g_{i+1}."""
+    g, u, d = z[:n], z[n:2 * n], z[2 * n:]
+    return g + u + d, jnp.roll(g, -1)
 
 
 def length_offsets(z, n: int):
@@ -118,10 +129,14 @@ def ramp(x, width=ROUNDING):
     return jnp.where(x > width, x - 0.5 * width, inner)
 
 
-def rates(forces, stretches, rim_speeds, scene: Scene, wrap, tension):
-    """Slip rates (m/s) (g', u'), (2n,): forces (n,) N each span's force on the pulleys (span
+def rates(forces, stretches, rim_speeds, scene: Scene, inst, wraps, z):
+    """Slip rates (m/s) (g', u', d'), (3n,): forces (n,) N each span's force on the pulleys (span
     i leaves entry i), stretches (n,) the spans' l / L0, rim_speeds (n,) m/s along the belt's
-    travel, wrap (n,) rad, tension the installation tension T_0 (N) (see the module docstring)."""
+    travel, inst the installation (its wraps (rad) and tension T_0 (N) set the capacities, its
+    ``creep`` (m) the arcs' belt at the start), wraps (n,) rad the present wraps, z (3n,) m the
+    slip states (see the module docstring)."""
+    wrap, tension = inst.wrap, inst.tension
+    n = forces.shape[0]
     f_in = jnp.roll(forces, 1)
     d_f = f_in - forces
     gain = jnp.expm1(friction.effective_coefficients(scene) * wrap)  # exp(mu' theta) - 1
@@ -130,14 +145,20 @@ def rates(forces, stretches, rim_speeds, scene: Scene, wrap, tension):
     g_dot = 0.0 - jnp.sign(d_f) * slide  # (no -0.0 where it holds)
     lam_in = jnp.roll(stretches, 1)
     u_dot = jnp.maximum(rim_speeds + g_dot, 0.0) * (stretches / lam_in - 1.0)
-    return jnp.concatenate([g_dot, u_dot])
+    held = friction.arc_belt_moved(forces, stretches, wraps, inst.radii, inst.stretch,
+                                   friction.effective_coefficients(scene))
+    d_dot = 2.0 * jnp.abs(rim_speeds) / (inst.radii * wraps) * (held - inst.creep - z[2 * n:])
+    return jnp.concatenate([g_dot, u_dot, d_dot])
 
 
 def dissipation(forces, z_dot, n: int):
-    """Friction power (W) of the slip rates z_dot (2n,) under span forces (n,) N: the gross
-    slip's -dF g' plus the creep loss sum F_out u'."""
-    g_dot, u_dot = z_dot[:n], z_dot[n:]
-    return jnp.sum(-(jnp.roll(forces, 1) - forces) * g_dot) + jnp.sum(forces * u_dot)
+    """Friction power (W) of the slip rates z_dot (3n,) under span forces (n,) N: the gross
+    slip's -dF g', the creep loss sum F_out u', and the power the spans hand the arcs' belt as it
+    is replaced, sum F_out d' (the arcs' own elastic energy and the microslip that replaces their
+    belt are not states: the power leaves the model's energy here; it averages out in a steady
+    run, and is negative while the arcs give belt back)."""
+    g_dot, u_dot, d_dot = z_dot[:n], z_dot[n:2 * n], z_dot[2 * n:]
+    return jnp.sum(-(jnp.roll(forces, 1) - forces) * g_dot) + jnp.sum(forces * (u_dot + d_dot))
 
 
 def check(scene: Scene) -> tuple[str, str] | None:

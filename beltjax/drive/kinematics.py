@@ -161,6 +161,7 @@ def _span_ends(phi, centers, radii, scene: Scene, inst: Installation, travel=0.0
     tl, dpsi = _moved_tangents(centers, radii, scene, inst)
     t_hat = tl.tangent
     s0, s1 = _end_slides(phi, radii, dpsi, scene, travel)
+    s0 = s0 + inst.creep  # the belt its arc handed the span (running belt: Installation.creep)
     return tl.start + s0[:, None] * t_hat, tl.end + s1[:, None] * t_hat, t_hat
 
 
@@ -196,7 +197,8 @@ def span_lengths(qi, scene: Scene, inst: Installation):
     (moved) layout, r = s R - s' R' the signed radius difference of the span's pulleys (from
     ``s R`` to ``s' R'``) and dpsi (rad) how far the span's direction turned from the installed
     one (:func:`_moved_tangents`): the end slides of :func:`_span_ends` are s R (phi - dpsi) and
-    s' R' (phi' - dpsi).
+    s' R' (phi' - dpsi).  Less the belt each arc handed its exit span (``inst.creep``, m: a
+    running belt's, zero as installed).
     """
     phi, theta = angles_and_arm(qi, scene, inst)
     centers, radii = _centers(theta, scene, inst)
@@ -204,7 +206,17 @@ def span_lengths(qi, scene: Scene, inst: Installation):
     sr = jnp.asarray(scene.route.senses, dtype=qi.dtype) * radii
     nxt = (np.arange(len(scene.route.order)) + 1) % len(scene.route.order)
     tl, dpsi = _moved_tangents(centers, radii, scene, inst)
-    return tl.length + (sr - sr[nxt]) * dpsi + slides
+    return tl.length + (sr - sr[nxt]) * dpsi + slides - inst.creep
+
+
+def wraps(qi, scene: Scene, inst: Installation):
+    """Wrap angles (n,) rad of the layout at q_i: the installed ones, each turned by how far its
+    exit span's direction turned less its entry span's, s (dpsi_i - dpsi_{i-1})
+    (:func:`_moved_tangents`; the installed wraps for fixed centres)."""
+    _, theta = angles_and_arm(qi, scene, inst)
+    centers, radii = _centers(theta, scene, inst)
+    _, dpsi = _moved_tangents(centers, radii, scene, inst)
+    return inst.wrap + jnp.asarray(scene.route.senses, dtype=qi.dtype) * (dpsi - jnp.roll(dpsi, 1))
 
 
 def _rim_slides(phi, radii, scene: Scene):

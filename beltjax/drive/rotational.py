@@ -15,7 +15,7 @@ from beltjax.drive import belt_slip
 from beltjax.drive.assembly import drive_of
 from beltjax.drive.effects import effects_of
 from beltjax.drive.forces import bar_axial_force, body_forces
-from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, rotor_angles, span_lengths_and_jacobian
+from beltjax.drive.kinematics import _body_coordinates, _centers, angles_and_arm, rotor_angles, span_lengths_and_jacobian, wraps
 from beltjax.drive.topology import Installation, element_length
 from beltjax.drive.equations import ReducedMass, _rim_transport_speed, _small_matmul_tn, _small_spd_solve, transport_speed
 
@@ -62,7 +62,7 @@ def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedM
     if slip is not None:  # the friction law sees the spans' elastic forces
         N_el = jax.vmap(lambda l_, L0_: bar_axial_force(l_, None, L0_, scene, cc))(l, L0)
         rims = jnp.asarray(scene.route.senses, dtype=qi.dtype) * inst.radii * B_dot[:n, 2]
-        z_dot = belt_slip.rates(N_el, l / L0, rims, scene, inst.wrap, inst.tension)
+        z_dot = belt_slip.rates(N_el, l / L0, rims, scene, inst, wraps(qi, scene, inst), slip)
         if rate is not None:  # the belt's damping acts on its whole stretching rate, slip included
             rate = rate + belt_slip.length_offsets(z_dot, n)
     N = jax.vmap(lambda l_, r_, L0_: bar_axial_force(l_, r_, L0_, scene, cc),

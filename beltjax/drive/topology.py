@@ -24,7 +24,9 @@ class Installation(NamedTuple):
     tension: installation tension (N); belt_length: unstretched belt length (m);
     centers (n, 2) m and radii (n,) m in route order; span_start, span_end (n, 2):
     tangent points (m); span_tangent (n, 2): unit vectors; span_length (n,) m:
-    installed span lengths; wrap (n,) rad.
+    installed span lengths; wrap (n,) rad; creep (n,) m: the belt each wrapped arc has handed
+    its exit span since the belt was installed (zero as installed; a running belt's steady
+    state, :func:`beltjax.friction.arc_belt_moved`, set by :func:`beltjax.statics.equilibrium`).
     """
 
     arm_angle: jax.Array
@@ -38,6 +40,7 @@ class Installation(NamedTuple):
     span_tangent: jax.Array
     span_length: jax.Array
     wrap: jax.Array
+    creep: jax.Array
 
 
 def canonical(scene: Scene) -> Scene:

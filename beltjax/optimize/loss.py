@@ -53,25 +53,26 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     loaded = drive.lasting_loads(sc)  # the operating point under the mean loads
 
     def at(v):
-        qv, _, iv = statics.equilibrium(sc, inst, speed=v, loaded=loaded)
-        force = critical.span_forces(sc, qv, inst, v)  # <= 0: at or past the critical speed
+        qv, at_v, iv = statics.equilibrium(sc, inst, speed=v, loaded=loaded)  # at_v: with its running creep
+        force = critical.span_forces(sc, qv, at_v, v)  # <= 0: at or past the critical speed
         if rpm.shape[0] == 0:
-            return qv, jnp.zeros(0), jnp.zeros(0), iv[0] > 0.5, force
+            return qv, jnp.zeros(0), jnp.zeros(0), iv[0] > 0.5, force, at_v.creep
         if span:
-            M, G, K = drive_modal.linearise(qv, sc, inst, v)
-            J = jax.jacfwd(lambda y: drive.full_coordinates(y, sc, inst))(qv)
-            stable, f, w = modes.frequencies_and_span_weights(M, G, K, J, nr, gyro, v_rigid, sc, inst)
+            M, G, K = drive_modal.linearise(qv, sc, at_v, v)
+            J = jax.jacfwd(lambda y: drive.full_coordinates(y, sc, at_v))(qv)
+            stable, f, w = modes.frequencies_and_span_weights(M, G, K, J, nr, gyro, v_rigid, sc, at_v)
         else:
-            stable, f, *_ = drive_modal.frequencies_about(sc, qv, inst, v, gyro)
+            stable, f, *_ = drive_modal.frequencies_about(sc, qv, at_v, v, gyro)
             w = jnp.ones_like(f)
-        return qv, f, w, stable & (iv[0] > 0.5), force
+        return qv, f, w, stable & (iv[0] > 0.5), force, at_v.creep
 
     # the static state (the scene's own speed) and every sampled speed through one equilibrium
     # solver in the compiled function (a second copy of the Newton loop and its implicit
     # derivative cost ~20 % more compile time); lax.map: see the module docstring
     v0 = drive.belt_speed(sc)
     speeds = jnp.concatenate([jnp.reshape(v0, (1,)), drive.belt_speed(sc, rpm)])
-    qs, freqs, weights, good, force = jax.lax.map(at, speeds)
+    qs, freqs, weights, good, force, creeps = jax.lax.map(at, speeds)
+    inst = inst._replace(creep=creeps[0])  # the static state's, at the scene's own speed
     if rpm.shape[0] == 0:
         freqs = weights = jnp.zeros((1, drive.n_independent(sc)))
     qi = qs[0]
