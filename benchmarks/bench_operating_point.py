@@ -10,9 +10,9 @@ Measures on ``scenes/fead_8pulley.toml``: the compiled statics of the operating 
 hubs, drive torque) and of the unloaded state, rotational and hybrid (8 elements per span);
 the whole ``analyse_statics`` (both states, slip margins, checks); the rotational transient of
 one simulated second at idle with the 2nd crank order (wall per simulated second, real-time
-factor).  Writes results/operating_point.json.  Friction enters the statics as the running
-belt's compatibility (the sliding arcs, solved with the equilibrium) and as the capstan
-assessment of the solved state (in ``analyse_statics``).
+factor).  Writes results/operating_point.json.  Friction enters as the capstan assessment of
+the solved state (in ``analyse_statics``); this drive's belt grips (no ``belt_slip``), so its
+statics holds the arcs as installed rather than solving the running belt's compatibility.
 """
 
 from __future__ import annotations

@@ -343,22 +343,25 @@ def test_a_running_belt_keeps_its_length(name):
     spans and arcs hold, written out by classical creep theory, is the belt installed, to the
     first order of the model's kinematics in the strains (about 1e-6 of the length), on the
     two-pulley bench (6 N m), the eight-pulley drive (its arm settles where the belt's length
-    holds; mu' on every arc) and Shigley's drive (sliding arcs of 68 deg).  The same drive whose
-    belt grips (no ``belt_slip``) keeps its arcs as installed, and its operating point's belt is
-    20-150 times further off: a loaded running belt's arcs are not as installed.  At speed
+    holds; mu' on every arc) and Shigley's drive (sliding arcs of 68 deg).  The same fixed-centre
+    drive whose belt grips (no ``belt_slip``) keeps its arcs as installed, and its operating
+    point's belt is 20-100 times further off (1.5e-4 on the eight-pulley drive:
+    benchmarks/running_belt_length.py): a loaded running belt's arcs are not as installed.  At speed
     without loads the running belt runs at one tension, its arcs' as its spans'.  (Where an arm
     swings by tens of degrees, the kinematic map, which keeps the belt's stretched length as the
     arm swings, adds R dwrap (eps_span - eps_arc) to this balance: 2e-5 of the length for a
     54 deg swing of the tensioner bench's arm.)"""
     txt = _two_pulley("rotational", extra_belt="friction_coefficient = 0.4") if name == "two_pulley" else scene_text(name)
-    gripping = loads_scene(re.sub(r'"belt_slip",? ?', "", txt))
     sc = loads_scene(_creeping(re.sub(r'"belt_slip",? ?', "", txt)))
-    r, r0 = statics.analyse_statics(sc), statics.analyse_statics(gripping)
+    r = statics.analyse_statics(sc)
     L = float(r.inst.belt_length)
-    assert abs(belt_held(sc, r) / L - 1) < 2e-6
-    assert abs(belt_held(gripping, r0) / L - 1) > 2e-5
-    assert abs(belt_held(gripping, r0, arcs_as_installed=True) / L - 1) < 2e-6  # what the grip keeps
-    assert np.any(np.abs(np.asarray(r.inst.creep)) > 0) and np.all(np.asarray(r0.inst.creep) == 0)
+    assert abs(belt_held(sc, r) / L - 1) < 2e-6 and np.any(np.abs(np.asarray(r.inst.creep)) > 0)
+    if name != "fead_8pulley.toml":  # (the fixed-centre drives: one 8-pulley statics compiled, not two)
+        gripping = loads_scene(re.sub(r'"belt_slip",? ?', "", txt))
+        r0 = statics.analyse_statics(gripping)
+        assert abs(belt_held(gripping, r0) / L - 1) > 2e-5
+        assert abs(belt_held(gripping, r0, arcs_as_installed=True) / L - 1) < 2e-6  # what the grip keeps
+        assert np.all(np.asarray(r0.inst.creep) == 0)
     T = np.asarray(r.unloaded["span_tensions_N"])
     assert np.allclose(T, T[0], rtol=1e-9)
 
