@@ -23,7 +23,8 @@ Effects (units of the parameters they own):
 - ``tensioner_friction``: tensioner.friction_moment (N m), friction_asymmetry (-),
   friction_speed (rad/s): dry friction at the tensioner pivot (:mod:`beltjax.drive.pivot`).
 - ``belt_slip``: belt.slip_speed (m/s): creep and gross slip of the belt on every wrapped arc,
-  two states per arc in the transient (:mod:`beltjax.drive.belt_slip`; rotational model).
+  three states per arc in the transient (:mod:`beltjax.drive.belt_slip`; rotational model), and
+  the running belt's compatibility in the operating point (:func:`beltjax.statics.equilibrium`).
 """
 
 from __future__ import annotations
@@ -237,7 +238,8 @@ class TensionerFriction(Effect):
 
 class BeltSlip(Effect):
     """Creep and gross slip on every wrapped arc: its slip states ride in the transient's state
-    and slide the spans' end nodes in the kinematic map (:mod:`beltjax.drive.belt_slip`); it
+    and slide the spans' end nodes in the kinematic map (:mod:`beltjax.drive.belt_slip`), and the
+    operating point holds the running belt's arcs (:func:`beltjax.statics.equilibrium`); it
     contributes no potential or force of its own."""
 
     name: ClassVar[str] = "belt_slip"
