@@ -46,7 +46,7 @@ import numpy as np
 
 from beltjax import ancf, drive, span
 from beltjax.errors import BeltjaxError
-from beltjax.drive import Installation, pivot
+from beltjax.drive import Installation, belt_slip, pivot
 from beltjax.scene import TENSIONER, Scene
 
 #: largest installation strain accepted (2 %, far beyond any belt's working strain): a
@@ -312,8 +312,7 @@ def _running_creep(qi, scene: Scene, inst: Installation, speed):
     return jnp.where(jnp.abs(speed) > 0, moved, 0.0)
 
 
-def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, steps: int = 1, loaded: bool = False,
-                running: bool = True):
+def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, steps: int = 1, loaded: bool = False):
     """Static (steady-motion) equilibrium: independent coordinates and diagnostics.
 
     speed: belt speed (m/s; default from the drive pulley's speed_rpm);
@@ -323,20 +322,18 @@ def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, step
     belt (speed != 0) is solved with its compatibility: the belt on each arc is the belt that ran
     on there, at its arriving span's stretch and over the sliding arc at the exit going to its
     exit span's (:func:`beltjax.friction.arc_belt_moved`), so each arc hands its exit span the
-    belt it no longer holds (``inst.creep``, m, solved together with q_i); at rest, without
-    ``belt_slip`` (the belt grips every rim and cannot creep) or with running=False the arcs
-    keep the belt as ``inst`` has it (as installed).  Returns ``(qi, inst, (converged, iterations, residual_norm))``, inst with its
-    ``creep`` (floats; converged is 1.0 or 0.0); differentiable in every scene parameter by the
-    implicit function theorem.
+    belt it no longer holds (``inst.creep``, m, solved together with q_i); at rest, or without
+    ``belt_slip`` (the belt grips every rim and cannot creep), the arcs keep the belt as ``inst``
+    has it (as installed).  Returns ``(qi, inst, (converged, iterations, residual_norm))``, inst
+    with its ``creep`` (floats; converged is 1.0 or 0.0); differentiable in every scene parameter
+    by the implicit function theorem.
     """
-    from beltjax.drive import belt_slip
-
     inst = install(scene) if inst is None else inst
     speed = drive.belt_speed(scene) if speed is None else speed
     full0 = drive.installed_coordinates(scene, inst)
     dofs = drive.static_dofs(scene)
     k = len(dofs)
-    running = running and belt_slip.n_states(scene) > 0  # a belt that creeps (else it grips: arcs kept)
+    running = belt_slip.n_states(scene) > 0  # a belt that creeps (else it grips: arcs kept)
     z0 = jnp.concatenate([full0[dofs], inst.creep]) if running else full0[dofs]
 
     def unpack(z):

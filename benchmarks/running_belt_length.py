@@ -26,17 +26,17 @@ from beltjax import parameters, statics  # noqa: E402
 from beltjax.scene import load_scene, loads_scene  # noqa: E402
 
 sys.path.insert(0, str(HERE.parent / "tests"))
-from _creep_profile import belt_held  # noqa: E402
+from _creep_profile import belt_held, creeping, gripping  # noqa: E402
 
 SCENES = HERE.parent / "scenes"
 LBF = 4.4482216152605
 
 
 def _text(name: str) -> str:
-    """The scene text of ``name`` without ``belt_slip``; "two_pulley": the two-pulley bench at
-    800 rpm with 6 N m on the alternator and mu = 0.4 (as tests/test_operating_point.py)."""
+    """The scene text of ``name``; "two_pulley": the two-pulley bench at 800 rpm with 6 N m on
+    the alternator and mu = 0.4 (as tests/test_operating_point.py)."""
     if name != "two_pulley":
-        return re.sub(r'"belt_slip",? ?', "", (SCENES / name).read_text()).replace(", ]", "]")
+        return (SCENES / name).read_text()
     txt = (SCENES / "two_pulley_T400.toml").read_text()
     txt = txt.replace("driven = false", "driven = true").replace("speed_rpm = 0.0", "speed_rpm = 800.0", 1)
     txt = re.sub(r'fidelity = "ancf"', 'fidelity = "rotational"', txt)
@@ -44,16 +44,12 @@ def _text(name: str) -> str:
     return txt + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 6.0\n'
 
 
-def _creeping(txt: str) -> str:
-    return re.sub(r"effects = \[", 'effects = ["belt_slip", ', txt, count=1).replace('"belt_slip", ]', '"belt_slip"]')
-
-
 def main():
     names = {"two_pulley": "two-pulley bench, 6 N m", "fead_8pulley.toml": "eight-pulley drive",
              "shigley_flat_belt.toml": "Shigley Example 17-1"}
     rows, records = [], []
     for key, name in names.items():
-        grip, creep = loads_scene(_text(key)), loads_scene(_creeping(_text(key)))
+        grip, creep = loads_scene(gripping(_text(key))), loads_scene(creeping(_text(key)))
         r0, r = statics.analyse_statics(grip), statics.analyse_statics(creep)
         L = float(r.inst.belt_length)
         e_creep, e_grip = belt_held(creep, r) / L - 1, belt_held(grip, r0) / L - 1

@@ -1,11 +1,13 @@
 """The belt a running drive's state holds, written out by classical creep theory: the reference
 of the running belt's compatibility (tests/test_operating_point.py,
 benchmarks/running_belt_length.py), apart from the model's own first-order formula
-(:func:`beltjax.friction.arc_belt_moved`)."""
+(:func:`beltjax.friction.arc_belt_moved`); and the scene texts of one drive whose belt grips or
+creeps."""
 
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -35,3 +37,14 @@ def belt_held(sc, r, arcs_as_installed: bool = False) -> float:
         Ts = F[i - 1] * np.exp(x * s) + (T[i - 1] - F[i - 1]) + ((T[i] - F[i]) - (T[i - 1] - F[i - 1])) * s
         held += radii[i] * ((wraps[i] - slide) / stretch(T[i - 1]) + slide * np.trapezoid(1 / stretch(Ts), s))
     return held
+
+
+def gripping(txt: str) -> str:
+    """A scene text without ``belt_slip`` in its effects (a belt that grips every rim)."""
+    return re.sub(r'"belt_slip",? ?', "", txt).replace(", ]", "]")
+
+
+def creeping(txt: str) -> str:
+    """A scene text with ``belt_slip`` listed first among its effects (a belt that creeps)."""
+    return re.sub(r"effects = \[", 'effects = ["belt_slip", ', gripping(txt), count=1).replace('"belt_slip", ]',
+                                                                                              '"belt_slip"]')

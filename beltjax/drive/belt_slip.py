@@ -137,16 +137,16 @@ def rates(forces, stretches, rim_speeds, scene: Scene, inst, wraps, z):
     slip states (see the module docstring)."""
     wrap, tension = inst.wrap, inst.tension
     n = forces.shape[0]
+    mu = friction.effective_coefficients(scene)
     f_in = jnp.roll(forces, 1)
     d_f = f_in - forces
-    gain = jnp.expm1(friction.effective_coefficients(scene) * wrap)  # exp(mu' theta) - 1
+    gain = jnp.expm1(mu * wrap)  # exp(mu' theta) - 1
     capacity = jnp.maximum(jnp.minimum(forces, f_in), 0.0) * gain  # C: the smaller span force (floored at 0)
     slide = scene.belt.slip_speed * ramp((jnp.abs(d_f) - capacity) / (tension * gain))  # C_0 = T_0 gain
     g_dot = 0.0 - jnp.sign(d_f) * slide  # (no -0.0 where it holds)
     lam_in = jnp.roll(stretches, 1)
     u_dot = jnp.maximum(rim_speeds + g_dot, 0.0) * (stretches / lam_in - 1.0)
-    held = friction.arc_belt_moved(forces, stretches, wraps, inst.radii, inst.stretch,
-                                   friction.effective_coefficients(scene))
+    held = friction.arc_belt_moved(forces, stretches, wraps, inst.radii, inst.stretch, mu)
     d_dot = 2.0 * jnp.abs(rim_speeds) / (inst.radii * wraps) * (held - inst.creep - z[2 * n:])
     return jnp.concatenate([g_dot, u_dot, d_dot])
 
