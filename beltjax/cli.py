@@ -296,7 +296,7 @@ def cmd_orders(args) -> int:
 
     scene = _load(args.scene)
     out = _out_dir(args.out)
-    settings = orders.Settings(samples=args.samples, max_order=args.max_order)
+    settings = orders.Settings(samples=args.samples, max_order=args.max_order, method=args.method)
     try:
         res = _analysis(orders.response_over_speed, scene, args.rpm, settle_s=args.settle_s, settings=settings,
                         progress=counter("  orders", "speeds"))
@@ -417,9 +417,13 @@ def build_parser() -> argparse.ArgumentParser:
     od.add_argument("scene", help="scene file (TOML)")
     od.add_argument("--rpm", type=_rpm_range, required=True,
                     help="drive pulley speeds A:B:STEP [rpm], end included, all > 0 (e.g. 600:6000:50)")
+    od.add_argument("--method", choices=("shooting", "settle"), default="shooting",
+                    help="periodic steady state by shooting (Newton on the one-cycle map; default; a drive with "
+                         "belt_slip settles) or by a settling transient")
     od.add_argument("--settle-s", dest="settle_s", type=_number("settle-s", True), default=1.0,
-                    help="transient time before the recorded cycle [s] (default 1; speeds that have not settled "
-                         "run again 4x longer, then are flagged)")
+                    help="transient time before the recorded cycle [s] of the settling method and of the speeds "
+                         "the shooting did not converge at (default 1; speeds that have not settled run again 4x "
+                         "longer, then are flagged)")
     od.add_argument("--max-order", dest="max_order", type=_number("max-order", True, False), default=8.0,
                     help="highest crank order reported (default 8)")
     od.add_argument("--samples", type=_count("samples"), default=128,

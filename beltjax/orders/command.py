@@ -64,9 +64,12 @@ def summary(result: OrdersResult) -> str:
     rpm, st = result.rpm, np.asarray(result.status)
     m = result.meta
     revs = m["revolutions_per_cycle"]
+    n_shot = m["methods"].count("shooting")
+    how = (f"by shooting at {n_shot}, a settling transient at {len(rpm) - n_shot}" if n_shot else
+           f"settled {m['settle_s']:g} s, {m['rerun_speeds']} speed{'' if m['rerun_speeds'] == 1 else 's'} run again "
+           f"{RETRY_FACTOR:g}x longer")
     lines = [f"  {len(rpm)} speeds {rpm.min():.0f}-{rpm.max():.0f} rpm, {m['fidelity']} model, a cycle of {revs} "
-             f"crank revolution{'s' if revs > 1 else ''}; settled {m['settle_s']:g} s, {m['rerun_speeds']} "
-             f"speed{'' if m['rerun_speeds'] == 1 else 's'} run again {RETRY_FACTOR:g}x longer",
+             f"crank revolution{'s' if revs > 1 else ''}; {how}",
              f"  {m['wall_s']:.1f} s"]
     for s in sorted(set(st) - {"ok"}):
         lines.append(f"  {s.replace('_', ' ')}: {_where(rpm, st == s)} rpm")

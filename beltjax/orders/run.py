@@ -17,8 +17,8 @@ import numpy as np
 
 from beltjax import drive, friction, parameters
 from beltjax.errors import BeltjaxError
-from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, SOLVERS, STARTS, Settings, cycle_revolutions, for_scene,
-                                   steady_case)
+from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, METHODS, SOLVERS, STARTS, Settings, cycle_revolutions,
+                                   for_scene, steady_case)
 from beltjax.scene import Scene
 from beltjax.transient_outputs import UNITS, _columns
 
@@ -110,11 +110,15 @@ def _batch(settings: Settings, keys: tuple[str, ...]) -> Callable:
     return jax.jit(jax.vmap(one, in_axes=(None, 0, 0, 0)))
 
 
-def default_chunk(n: int) -> int:
-    """Speeds per compiled batch: all of them on an accelerator, up to 32 on a CPU (the batch runs
-    in lock-step to its slowest speed, and the chunks give progress)."""
+def default_chunk(n: int, method: str = "shooting") -> int:
+    """Speeds per compiled batch: all of them on an accelerator; on a CPU one at a time for the
+    shooting (a batch runs in lock-step, and its variational equations cost in proportion to the
+    batch: on the eight-pulley drive 100 speeds took 12 s one by one, 19.5 s in batches of 25),
+    up to 32 for the settling transient (the chunks give progress)."""
     if jax.default_backend() != "cpu":
         return max(1, n)
+    if method == "shooting":
+        return 1
     return max(1, -(-n // -(-n // 32)))  # chunks of at most 32, as even as can be (less padding)
 
 
@@ -171,8 +175,10 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     the least slip margin of each arc, the hub-force loci.
 
     values: {parameter path: value} set on the scene for every speed; settle_s: transient time
-    (s) before the recorded cycle (speeds whose settling residual stays above ``settle_tol`` are
-    run again with :data:`RETRY_FACTOR` times it, then flagged ``not_settled``); settings:
+    (s) before the recorded cycle of the settling method (speeds that the shooting did not bring to
+    an attracting cycle settle for that long; those whose settling residual stays above
+    ``settle_tol`` are run again with :data:`RETRY_FACTOR` times it, then flagged
+    ``not_settled``; ``meta["methods"]`` says which gave each speed); settings:
     :class:`~beltjax.orders.steady.Settings` (samples per cycle, highest order, tolerances);
     chunk: speeds per compiled batch (:func:`default_chunk`); progress(done, total).  Raises
     :class:`OrdersError` for a scene or speeds without a steady state in crank angle
@@ -184,6 +190,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         raise OrdersError(f"solver: {given.solver!r}; choose one of {', '.join(SOLVERS)}", "solver")
     if given.start not in STARTS:
         raise OrdersError(f"start: {given.start!r}; choose one of {', '.join(STARTS)}", "start")
+    if given.method not in METHODS:
+        raise OrdersError(f"method: {given.method!r}; choose one of {', '.join(METHODS)}", "method")
     check(scene, rpm)
     if not (math.isfinite(settle_s) and settle_s >= 0):
         raise OrdersError(f"settle_s: must be a finite time >= 0 s, got {settle_s!r}", "settle_s")
@@ -203,10 +211,9 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
                           f"(now {settings.samples}): raise samples or lower max_order", "max_order")
     keys = tuple(sorted(values))
     x = np.asarray([[float(values[k]) for k in keys]], dtype=float)
-    fn = _batch(settings, keys)
-    size = chunk or default_chunk(rpm.size)
+    size = chunk or default_chunk(rpm.size, settings.method)
 
-    def run(speeds, settle):
+    def run(fn, speeds, settle):
         parts, done = [], 0
         for a in range(0, speeds.size, size):
             r = speeds[a : a + size]
@@ -219,10 +226,22 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     t0 = time.perf_counter()
-    out = run(rpm, settle_s)
-    retry = np.flatnonzero(~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5))
-    if retry.size:
-        again = run(rpm[retry], settle_s * RETRY_FACTOR)
+    out = run(_batch(settings, keys), rpm, settle_s)
+    # the speeds that had not settled: a shooting that did not converge to an attracting cycle runs
+    # the settling transient, and a transient that had not settled runs again RETRY_FACTOR x longer
+    passes = [(settle_s, "settle"), (settle_s * RETRY_FACTOR, "settle")]
+    if settings.method == "settle":
+        passes = passes[1:]
+    rerun = np.zeros(rpm.size, dtype=bool)
+    used = [settings.method if settings.method == "shooting" else f"settle {settle_s:g} s"] * rpm.size
+    for time_s, method in passes:
+        retry = np.flatnonzero(~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5))
+        if not retry.size:
+            break
+        rerun[retry] = True
+        for i in retry:
+            used[i] = f"{method} {time_s:g} s"
+        again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s)
         for k in out:
             out[k][retry] = again[k]
     wall = time.perf_counter() - t0
@@ -242,7 +261,10 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     units.update(min_slip_margin="-", max_friction_needed="-", hub_forces_N="N")
     meta = dict(
         fidelity=scene.model.fidelity, drive_pulley=order[drive.drive_pulley(scene)], settle_s=settle_s,
-        settle_tol=settle_tol, rerun_speeds=int(retry.size), revolutions_per_cycle=settings.revolutions,
+        settle_tol=settle_tol, rerun_speeds=int(rerun.sum()), methods=used,
+        shooting_iterations=out["shooting_iterations"].astype(int).tolist(),
+        floquet_multipliers=[None if not np.isfinite(m) else float(m) for m in out["floquet_multiplier"]],
+        revolutions_per_cycle=settings.revolutions,
         samples_per_cycle=settings.samples, rtol=settings.rtol, atol=settings.atol, solver=settings.solver,
         steps=out["steps"].astype(int).tolist(), t_end_s=out["t_end_s"].tolist(), wall_s=wall, chunk=size,
         values={k: float(v) for k, v in values.items()},

@@ -1,22 +1,24 @@
 """The periodic steady state of a drive at one engine speed, as one pure JAX function (jit, vmap,
-grad): the operating point under the mean loads, a transient of the scene's excitation from it
-until the start-up has died out, and one recorded excitation cycle reduced to what an engineer
-reads against speed (mean, min, max, peak-to-peak, order amplitudes, least slip margin).
+grad): the operating point under the mean loads, the periodic state found by shooting
+(:mod:`beltjax.orders.shooting`, the default) or by a transient of the scene's excitation until
+the start-up has died out, and one recorded excitation cycle reduced to what an engineer reads
+against speed (mean, min, max, peak-to-peak, order amplitudes, least slip margin).
 
 A case is the scene with parameter ``values`` set and the drive pulley at ``rpm``; every crank
 order of the scene's ``[[fluctuation]]`` follows the speed (its frequency is order x rpm / 60).
 The excitation cycle is the least whole number of crank revolutions over which every order
-repeats (1 for whole orders, 2 with half orders: :func:`cycle_revolutions`).  The transient runs
+repeats (1 for whole orders, 2 with half orders: :func:`cycle_revolutions`).  Both methods run
 the scene's equations (:func:`beltjax.transient.vector_field`) with an adaptive explicit pair
-(Dopri8, the rotational model's default) from t = 0 to the end of the recorded cycle, the first
-whole cycle after ``settle_s``.  It starts on the periodic response of the drive linearised about
-the operating point (:mod:`beltjax.orders.linear_start`), so that only the nonlinear remainder
-of the start-up has to die out (``Settings.start = "operating_point"`` starts at rest, as a
-plain transient does).  A second cycle is recorded at half that time; the largest
-change of the state between the two, against its range over the cycle, is the ``settling``
-residual (a start-up transient decaying as exp(-s t) leaves A exp(-s t) at the end and changed
-by A (exp(-s t/2) - exp(-s t)) between the cycles: once that change is small against the
-response, what is left is smaller still whenever s t/2 > ln 2).
+(Dopri8, the rotational model's default), and both start on the periodic response of the drive
+linearised about the operating point (:mod:`beltjax.orders.linear_start`; ``Settings.start =
+"operating_point"`` starts at rest, as a plain transient does).  Shooting then iterates on one
+cycle and records the cycle from its fixed point.  The settling transient (``Settings.method =
+"settle"``) runs from t = 0 to the end of the recorded cycle, the first whole cycle after
+``settle_s``, so that the nonlinear remainder of the start-up dies out.  A second cycle is
+recorded at half that time; the largest change of the state between the two, against its range
+over the cycle, is the ``settling`` residual (a start-up transient decaying as exp(-s t) leaves
+A exp(-s t) at the end and changed by A (exp(-s t/2) - exp(-s t)) between the cycles: once that
+change is small against the response, what is left is smaller still whenever s t/2 > ln 2).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from beltjax.excitation import ADAPTIVE_PERIOD_FRACTION
 from beltjax.scene import Scene
 from beltjax.drive.couplings import isolator_wind_up
 from beltjax.drive import belt_slip
+from beltjax.orders import shooting
 from beltjax.orders.linear_start import linear_periodic_start
 from beltjax.transient import start_vector, vector_field
 from beltjax.transient_outputs import _outputs_one
@@ -46,8 +49,10 @@ CHANNELS = ("arm_angle_deg", "span_tensions_N", "hub_force_magnitudes_N", "pulle
 STATS = ("mean", "min", "max", "p2p")
 #: the adaptive solvers a steady state may use
 SOLVERS = ("dopri8", "tsit5", "kvaerno5")
-#: where the settling transient may start (:class:`Settings`)
+#: where the settling transient or the shooting may start (:class:`Settings`)
 STARTS = ("linear", "operating_point")
+#: how the periodic steady state is found (:class:`Settings`)
+METHODS = ("shooting", "settle")
 #: most crank revolutions of one excitation cycle (orders given to 1/MAX_REVOLUTIONS)
 MAX_REVOLUTIONS = 8
 
@@ -66,7 +71,10 @@ class Settings:
     implicit Kvaerno5 took 1.5-3.4x the steps at the same tolerances, and 7x the time); start:
     one of :data:`STARTS`, where the settling transient starts (``"linear"``, the default: the
     linearised drive's periodic response, :mod:`beltjax.orders.linear_start`; ``"operating_point"``:
-    the operating point at rest in the rotating frame, as :func:`beltjax.transient.simulate`)."""
+    the operating point at rest in the rotating frame, as :func:`beltjax.transient.simulate`);
+    method: one of :data:`METHODS`, ``"shooting"`` (the default: Newton's method on the one-cycle
+    map from that start, :mod:`beltjax.orders.shooting`; :func:`for_scene` makes it ``"settle"``
+    for a drive whose state drifts) or ``"settle"`` (a transient of at least ``settle_s``)."""
 
     samples: int = 128
     max_order: float = 8.0
@@ -77,6 +85,7 @@ class Settings:
     solver: str = "dopri8"
     top_order: float = 8.0
     start: str = "linear"
+    method: str = "shooting"
 
     @property
     def harmonics(self) -> int:
@@ -105,7 +114,10 @@ def for_scene(scene: Scene, settings: Settings | None = None) -> Settings:
     """``settings`` (default :class:`Settings`) with the scene's cycle (:func:`cycle_revolutions`)
     and its highest excited crank order (at least 1): static, read from the scene's values."""
     top = max([1.0] + [float(f.rate) for f in scene.fluctuations if f.per == "rev"])
-    return dataclasses.replace(settings or Settings(), revolutions=cycle_revolutions(scene), top_order=top)
+    settings = dataclasses.replace(settings or Settings(), revolutions=cycle_revolutions(scene), top_order=top)
+    if belt_slip.n_states(scene):  # creeping pulleys' angles and the slip states drift: no fixed point to shoot for
+        settings = dataclasses.replace(settings, method="settle")
+    return settings
 
 
 def speed_path(scene: Scene) -> str:
@@ -139,7 +151,8 @@ def _settling(y_early, y_late, n: int, dt, creeping=None):
 
 def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, solved=None) -> dict:
     """The periodic steady state of ``scene`` with ``values`` {path: value} set, drive pulley at
-    ``rpm`` (rev/min), after at least ``settle_s`` (s) of transient (pure JAX: jit, vmap, grad).
+    ``rpm`` (rev/min), by shooting or after at least ``settle_s`` (s) of transient
+    (``settings.method``; pure JAX: jit, vmap, grad).
     ``solved``: (q_i, installation, converged) of that scene's operating point at ``rpm`` when
     the caller has it (a sweep's case), else it is solved here.
 
@@ -148,13 +161,19 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     amplitudes of the orders :meth:`Settings.orders`); ``min_slip_margin`` (per arc with a friction
     coefficient, the least over the cycle, -), ``max_friction_needed`` (per route entry, -);
     ``hub_forces_N`` (K, bearings, 2): the hub force vectors over the cycle (N); ``t_s`` (K,)
-    the recorded times (s); ``settling`` (-): :func:`_settling`; ``converged`` (statics) and
+    the recorded times (s); ``settling`` (-): :func:`_settling`, or with shooting the recorded
+    cycle's own change (:func:`beltjax.orders.shooting.change_over_cycle`; inf where the shooting
+    did not converge to an attracting cycle); ``shooting_iterations`` and ``floquet_multiplier``
+    (the cycle's largest, -; 0 and nan for a settling transient); ``converged`` (statics) and
     ``solver_ok`` (the transient reached the end) and ``supercritical`` (a span past its critical
     speed at the operating point: :mod:`beltjax.critical`) as 1.0 / 0.0; ``min_span_force_N``: the
     least force of a span on its pulleys over the cycle (N; with ``transport`` its tension less
-    rhoA c^2 lam: at or below 0 the belt no longer presses on the pulleys); ``t_end_s``; ``steps``."""
+    rhoA c^2 lam: at or below 0 the belt no longer presses on the pulleys); ``t_end_s`` (the
+    recorded cycle's end, s); ``steps`` (all the integrations')."""
     if settings.start not in STARTS:  # over_speed's callers reach here unchecked
         raise ValueError(f"start: {settings.start!r}; choose one of {', '.join(STARTS)}")
+    if settings.method not in METHODS:
+        raise ValueError(f"method: {settings.method!r}; choose one of {', '.join(METHODS)}")
     path = speed_path(scene)
     sign = jnp.where(parameters.get_value(scene, path) < 0, -1.0, 1.0)  # the scene's sense of rotation
     sc = parameters.set_values(scene, {**values, path: sign * jnp.abs(rpm)})
@@ -171,11 +190,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
 
     K = settings.samples
     period = settings.revolutions * 60.0 / jnp.abs(rpm)  # s, one excitation cycle
-    cycles = jnp.maximum(jnp.ceil(settle_s / period), 2.0)
-    t_late = cycles * period
-    t_early = jnp.floor(cycles / 2) * period
     phase = period * jnp.arange(K + 1) / K
-    ts = jnp.concatenate([t_early + phase, t_late + phase])
     f = vector_field(sc, inst)
     if settings.start == "linear":
         y0 = linear_periodic_start(f, y0, period, K)
@@ -183,13 +198,22 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
     ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
     solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
+    if settings.method == "shooting":  # y0 <- the periodic state, then one cycle from it
+        y0, shot = shooting.periodic_orbit(f, vector_field(*shooting.held((sc, inst))), y0, period, phase[:-1],
+                                           solver, ctrl, settings.max_steps, n)
+        ts = phase
+    else:  # a transient of at least settle_s, two cycles recorded
+        cycles = jnp.maximum(jnp.ceil(settle_s / period), 2.0)
+        t_late = cycles * period
+        t_early = jnp.floor(cycles / 2) * period
+        ts = jnp.concatenate([t_early + phase, t_late + phase])
     with runtime.cacheable():  # kept by the persistent compilation cache
         sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=ts[-1], dt0=jnp.minimum(1e-4, period / 64), y0=y0,
                                   saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
                                   max_steps=settings.max_steps, throw=False)
     ys = sol.ys
-    early, late = ys[: K + 1], ys[K + 1 :]
-    t_rec = ts[K + 1 : -1]
+    early, late = (None, ys) if settings.method == "shooting" else (ys[: K + 1], ys[K + 1 :])
+    t_rec = ts[-(K + 1) : -1]
     M_full = drive.full_mass_matrix(sc, inst)
     chans = jax.vmap(lambda t, y: _outputs_one(t, y, sc, inst, M_full))(t_rec, late[:-1])
     free = drive.is_free(sc)
@@ -207,14 +231,23 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         out["min_slip_margin"] = jnp.min(margins, axis=0)
     out["hub_forces_N"] = chans["hub_forces_N"]
     out["t_s"] = t_rec
-    creeping = None
-    if belt_slip.n_states(sc):  # the slip states drift, and so do the creeping pulleys' angles
-        creeping = jnp.zeros(n).at[: belt_slip.rotations(sc)].set(1.0)
-    out["settling"] = _settling(early[:, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
+    steps = sol.stats["num_steps"].astype(jnp.float64)
+    if settings.method == "shooting":  # the recorded cycle's own change, if the shooting found an attracting cycle
+        change = shooting.change_over_cycle(late[0, : 2 * n], late[-1, : 2 * n], late[:-1, : 2 * n], n,
+                                            settings.rtol, settings.atol)
+        out["settling"] = jnp.where(shot["ok"] > 0.5, change, jnp.inf)
+        out["shooting_iterations"], out["floquet_multiplier"] = shot["iterations"], shot["multiplier"]
+        steps = steps + shot["steps"]
+    else:
+        creeping = None
+        if belt_slip.n_states(sc):  # the slip states drift, and so do the creeping pulleys' angles
+            creeping = jnp.zeros(n).at[: belt_slip.rotations(sc)].set(1.0)
+        out["settling"] = _settling(early[:, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
+        out["shooting_iterations"], out["floquet_multiplier"] = jnp.asarray(0.0), jnp.asarray(jnp.nan)
     out["converged"] = conv
     out["supercritical"] = critical.supercritical(sc, qi, inst, v).astype(jnp.float64)
     out["solver_ok"] = (sol.result == diffrax.RESULTS.successful).astype(jnp.float64)
     out["t_end_s"] = ts[-1]
-    out["steps"] = sol.stats["num_steps"].astype(jnp.float64)
+    out["steps"] = steps
     out["min_span_force_N"] = jnp.min(chans["span_forces_N"])  # with transport, tension less rhoA c^2 lam
     return out

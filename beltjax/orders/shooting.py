@@ -1,0 +1,174 @@
+"""The periodic steady state by shooting (pure JAX: jit, vmap, grad): Newton's method on the
+one-cycle map of the drive's equations, y(0) = Phi(y(0)), instead of a transient that waits for
+the start-up to die out.
+
+Each Newton iteration integrates one excitation cycle together with the variational equations
+Y' = (df/dy) Y, Y(0) = I (the state Jacobian applied to the N columns of Y by a vmapped
+``jax.linearize`` of the vector field; a step cost about 2.5 plain ones on the eight-pulley
+drive with the friction tensioner, measured once: the vector field is overhead-bound on a CPU).
+The step control holds Y 1000x looser than the state (:func:`error_norm`): on the state alone a
+drive at rest takes steps its linearisation cannot, and P comes out wrong; held as tight as the
+state, 100 speeds of that drive took 77 s instead of 60 s (measured once).  The cycle's end gives
+the monodromy matrix P = Y(T) and the update y <- y - (P - I)^-1 (Phi(y) - y), damped to at
+most the cycle's own range of motion (:data:`MAX_STEP`).  It starts on the linearised drive's
+periodic response (:mod:`beltjax.orders.linear_start`), and on the eight-pulley drives it
+converges in 2-5 iterations, where a settling transient needs about a second of simulated time
+(13 cycles at 800 rpm, 100 at 6000): ``benchmarks/bench_orders.py``.
+
+A fixed point is only the response an engine shows when it attracts: the largest Floquet
+multiplier (the spectral radius of P, estimated as ||P^m||^(1/m), m = 2^20, by repeated
+squaring, as ``jnp.linalg.eigvals`` has no accelerator kernel) must be below 1.  A case that does
+not converge in :data:`MAX_ITERATIONS`, gives a non-finite state or an unstable cycle is left to
+the settling transient (:func:`beltjax.orders.run.response_over_speed` re-runs it that way).  Not
+for states that drift (``belt_slip``'s creeping pulleys and slip states: no fixed point): those
+settle.
+
+Gradients: the Newton loop runs on stopped gradients; the implicit function theorem enters
+through one more Newton step, y* = y - (P - I)^-1 (Phi(y; p) - y), with the map Phi integrated
+differentiably and P held: its value is a further correction (the residual squared), its
+derivative in any parameter p is -(P - I)^-1 dPhi/dp, the fixed point's.
+"""
+
+from __future__ import annotations
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import optimistix as optx
+
+#: the variational equations' error counts this much against the state's in the step control
+Y_WEIGHT = 1e-3
+
+
+def error_norm(err) -> jax.Array:
+    """The step control's norm of the scaled error (state, Y): the larger of the state's rms and
+    :data:`Y_WEIGHT` times Y's (-)."""
+    return jnp.maximum(optx.rms_norm(err[0]), Y_WEIGHT * optx.rms_norm(err[1]))
+
+#: most Newton iterations (each one cycle with the variational equations)
+MAX_ITERATIONS = 8
+#: convergence: the state's change over one cycle against its range over the cycle (positions and
+#: speeds apart, as the settling residual :func:`beltjax.orders.steady._settling`)
+TOLERANCE = 1e-6
+#: motion below this range (rad, m or their rates) counts as none in the convergence test
+RANGE_FLOOR = 1e-9
+#: ... and so does motion within this many of the integration's tolerances (atol + rtol |y|)
+NOISE_RANGE = 1e3
+#: a Newton iterate whose change over the cycle is within this many tolerances of every
+#: coordinate has converged as far as the integration allows (a drive that hardly moves)
+NOISE_STOP = 10.0
+#: largest Newton step against the cycle's range of motion (positions and speeds apart, -)
+MAX_STEP = 1.0
+#: most steps of one cycle's integration (a cycle of the eight-pulley drive with a dry-friction
+#: tensioner takes 700-7,000; more means the iterate has left the drive's cycle: the case settles)
+MAX_CYCLE_STEPS = 50_000
+#: squarings of P in the spectral-radius estimate (P^(2^SQUARINGS))
+SQUARINGS = 20
+
+
+def change_over_cycle(y_start, y_end, samples, n: int, rtol: float, atol: float):
+    """The state's change over one cycle, y_end - y_start (2n,), against its range over the cycle's
+    ``samples`` (K, 2n), for the n positions and the n speeds apart; the larger of the two (-).  A
+    range within :data:`NOISE_RANGE` of the integration's tolerances (rtol, atol) counts as that
+    much: the change of a drive that hardly moves is its integration error, not a start-up."""
+    return _relative(y_end - y_start, samples, n, rtol, atol)
+
+
+def _relative(dy, samples, n: int, rtol: float, atol: float):
+    """max |dy| (2n,) against the range of ``samples`` (K, 2n), positions and speeds apart (-)."""
+    def part(sl):
+        x = samples[:, sl]
+        span = jnp.max(x.max(axis=0) - x.min(axis=0))
+        floor = jnp.maximum(RANGE_FLOOR, NOISE_RANGE * (atol + rtol * jnp.max(jnp.abs(x))))
+        return jnp.max(jnp.abs(dy[sl])) / jnp.maximum(span, floor)
+
+    return jnp.maximum(part(slice(0, n)), part(slice(n, 2 * n)))
+
+
+def spectral_radius(P):
+    """max |eigenvalue| of the square matrix P (-), as ||P^(2^k)||^(1/2^k) with k = :data:`SQUARINGS`
+    (rescaled at each squaring: no overflow); above the true value by at most a factor
+    (cond of P's eigenvectors)^(2^-20)."""
+    def sq(c, _):
+        A, log_n = c
+        A = A @ A
+        s = jnp.maximum(jnp.linalg.norm(A), 1e-300)
+        return (A / s, 2.0 * log_n + jnp.log(s)), None
+
+    s0 = jnp.maximum(jnp.linalg.norm(P), 1e-300)
+    (_, log_n), _ = jax.lax.scan(sq, (P / s0, jnp.log(s0)), None, length=SQUARINGS)
+    return jnp.exp(log_n / 2.0**SQUARINGS)
+
+
+def held(tree):
+    """``tree`` with the gradients of its array leaves stopped (what the Newton loop closes over)."""
+    return jax.tree_util.tree_map(lambda x: jax.lax.stop_gradient(x) if isinstance(x, jax.Array) else x, tree)
+
+
+def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int, n: int):
+    """The state y(0) of the periodic solution of y' = f(t, y, None) with period ``period`` (s),
+    by Newton's method from ``y0`` (the state's units); ``ts`` (K,) the cycle's sample times (s,
+    for the convergence test's ranges), ``solver``, ``controller`` (diffrax; the controller's step
+    control is applied to the state alone), ``max_steps`` per cycle (at most
+    :data:`MAX_CYCLE_STEPS`), n the number of coordinates (the state's first 2n entries are
+    positions and speeds); ``f_held``: the same vector field
+    with its parameters' gradients stopped (:func:`held`), which the Newton loop integrates.
+
+    Returns (y* (N,), info) with info: ``iterations``, ``residual`` (:func:`change_over_cycle` of
+    the last iterate), ``multiplier`` (largest Floquet multiplier, -), ``steps`` (all cycles),
+    ``ok`` (1.0 / 0.0: converged, to :data:`TOLERANCE` or to the integration's own error
+    (:data:`NOISE_STOP`), finite and attracting) as floats.  Differentiable in the parameters
+    ``f`` closes over (module docstring)."""
+    N = y0.shape[0]
+    max_steps = min(max_steps, MAX_CYCLE_STEPS)
+    T, t_samples = jax.lax.stop_gradient(period), jax.lax.stop_gradient(ts)
+    eye = jnp.eye(N, dtype=y0.dtype)
+
+    def variational(t, s, args):
+        y, Y = s
+        fy, lin = jax.linearize(lambda z: f_held(t, z, None), y)
+        return fy, jax.vmap(lin, in_axes=1, out_axes=1)(Y)
+
+    rtol, atol = controller.rtol, controller.atol
+    ctrl = diffrax.PIDController(rtol=controller.rtol, atol=controller.atol,
+                                 dtmax=None if controller.dtmax is None else jax.lax.stop_gradient(controller.dtmax),
+                                 norm=error_norm)
+
+    def cycle(y):
+        sol = diffrax.diffeqsolve(diffrax.ODETerm(variational), solver, t0=0.0, t1=T, dt0=T / 64,
+                                  y0=(y, eye), saveat=diffrax.SaveAt(ts=t_samples, t1=True, fn=lambda t, s, a: s),
+                                  stepsize_controller=ctrl, max_steps=max_steps, throw=False)
+        ys, Ys = sol.ys
+        return ys[:-1], ys[-1], Ys[-1], sol.stats["num_steps"], sol.result == diffrax.RESULTS.successful
+
+    def cond(c):
+        return (c["k"] < MAX_ITERATIONS) & ~c["done"] & c["finite"]
+
+    def body(c):
+        samples, yT, P, steps, good = cycle(c["y"])
+        r = yT - c["y"]
+        res = change_over_cycle(c["y"][: 2 * n], yT[: 2 * n], samples[:, : 2 * n], n, rtol, atol)
+        at_noise = jnp.all(jnp.abs(r) <= NOISE_STOP * (atol + rtol * jnp.abs(yT)))
+        step = jnp.linalg.solve(P - eye, r)
+        # damped: a step at most the cycle's own range of motion (far from the cycle, near a
+        # resonance, a full step can throw the state where the cycle takes max_steps)
+        step = step / jnp.maximum(1.0, _relative(step[: 2 * n], samples[:, : 2 * n], n, rtol, atol) / MAX_STEP)
+        finite = good & jnp.all(jnp.isfinite(step)) & jnp.isfinite(res)
+        done = (res <= TOLERANCE) | at_noise
+        y = jnp.where(done | ~finite, c["y"], c["y"] - step)
+        return dict(y=y, k=c["k"] + 1, residual=jnp.where(finite, res, jnp.inf), P=jnp.where(finite, P, c["P"]),
+                    steps=c["steps"] + steps, finite=finite, done=done & finite)
+
+    init = dict(y=jax.lax.stop_gradient(y0), k=jnp.asarray(0), residual=jnp.asarray(jnp.inf, y0.dtype), P=eye,
+                steps=jnp.asarray(0), finite=jnp.asarray(True), done=jnp.asarray(False))
+    c = jax.lax.while_loop(cond, body, init)
+    # the implicit function theorem's step (module docstring): Phi integrated with gradients, P held
+    plain = diffrax.diffeqsolve(diffrax.ODETerm(f), solver, t0=0.0, t1=period, dt0=period / 64, y0=c["y"],
+                                stepsize_controller=controller, max_steps=max_steps, throw=False)
+    correction = jnp.linalg.solve(c["P"] - eye, plain.ys[-1] - c["y"])
+    y_star = c["y"] - jnp.where(jnp.all(jnp.isfinite(correction)), correction, 0.0)
+    mult = spectral_radius(c["P"])
+    ok = c["done"] & (mult < 1.0) & jnp.all(jnp.isfinite(y_star))
+    info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult,
+                steps=(c["steps"] + plain.stats["num_steps"]).astype(y0.dtype), ok=ok.astype(y0.dtype))
+    return y_star, info
