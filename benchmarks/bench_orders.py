@@ -62,8 +62,8 @@ def main():
         runs = [(m, int(c)) for m in args.methods.split(",") for c in args.chunks.split(",") if c]
         if not runs:
             runs = [(m, None) for m in args.methods.split(",")]
-            if backend == "cpu" and name == "as shipped" and "shooting" in runs[0]:
-                runs.insert(1, ("shooting", 25))
+            if backend == "cpu" and name == "as shipped" and ("shooting", None) in runs:
+                runs.insert(runs.index(("shooting", None)) + 1, ("shooting", 25))
         got = {}
         for method, chunk in runs:
             settings = orders.Settings(method=method)

@@ -96,12 +96,14 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
         ok = ok & jnp.all(jnp.isfinite(m["slip_margins"]))
     motion = [o for o in problem.objectives if o.kind == "arm_motion"]
     if motion:  # the periodic steady state over each band (beltjax.orders): the arm's peak-to-peak
-        from beltjax.orders import over_speed
+        from beltjax.orders import SETTLE_TOL, over_speed
 
         runs = [over_speed(sc, {}, jnp.linspace(o.rpm[0], o.rpm[1], o.speeds), o.settle_s, o.response)
                 for o in motion]
         m["arm_p2p_deg"] = jnp.concatenate([r["arm_angle_deg:p2p"] for r in runs])  # the bands' speeds in turn
         ok = ok & jnp.all(jnp.stack([jnp.all(r["solver_ok"] > 0.5) for r in runs]))
+        # a speed without a periodic state (no attracting cycle, a transient not settled): not a feasible point
+        ok = ok & jnp.all(jnp.stack([jnp.all(r["settling"] <= SETTLE_TOL) for r in runs]))
         ok = ok & jnp.all(jnp.isfinite(m["arm_p2p_deg"]))
     m["inst"] = inst
     m["feasible"] = ok & finite

@@ -65,8 +65,9 @@ def summary(result: OrdersResult) -> str:
     m = result.meta
     revs = m["revolutions_per_cycle"]
     n_shot = m["methods"].count("shooting")
-    how = (f"by shooting at {n_shot}, a settling transient at {len(rpm) - n_shot}" if n_shot else
-           f"settled {m['settle_s']:g} s, {m['rerun_speeds']} speed{'' if m['rerun_speeds'] == 1 else 's'} run again "
+    longer = sum(x.startswith("settle") and x != f"settle {m['settle_s']:g} s" for x in m["methods"])
+    how = (f"by shooting at {n_shot}, a settling transient at {len(rpm) - n_shot}" if m["method"] == "shooting" else
+           f"settled {m['settle_s']:g} s, {longer} speed{'' if longer == 1 else 's'} run again "
            f"{RETRY_FACTOR:g}x longer")
     lines = [f"  {len(rpm)} speeds {rpm.min():.0f}-{rpm.max():.0f} rpm, {m['fidelity']} model, a cycle of {revs} "
              f"crank revolution{'s' if revs > 1 else ''}; {how}",

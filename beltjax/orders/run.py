@@ -113,8 +113,8 @@ def _batch(settings: Settings, keys: tuple[str, ...]) -> Callable:
 def default_chunk(n: int, method: str = "shooting") -> int:
     """Speeds per compiled batch: all of them on an accelerator; on a CPU one at a time for the
     shooting (a batch runs in lock-step, and its variational equations cost in proportion to the
-    batch: on the eight-pulley drive 100 speeds took 12 s one by one, 19.5 s in batches of 25),
-    up to 32 for the settling transient (the chunks give progress)."""
+    batch: on the eight-pulley drive 100 speeds took 10.4 s one by one, 17.4 s in batches of 25,
+    benchmarks/bench_orders.py), up to 32 for the settling transient (the chunks give progress)."""
     if jax.default_backend() != "cpu":
         return max(1, n)
     if method == "shooting":
@@ -213,7 +213,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     x = np.asarray([[float(values[k]) for k in keys]], dtype=float)
     size = chunk or default_chunk(rpm.size, settings.method)
 
-    def run(fn, speeds, settle):
+    def run(fn, speeds, settle, size=size):
         parts, done = [], 0
         for a in range(0, speeds.size, size):
             r = speeds[a : a + size]
@@ -241,9 +241,11 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         rerun[retry] = True
         for i in retry:
             used[i] = f"{method} {time_s:g} s"
-        again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s)
+        again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s,
+                    chunk or default_chunk(retry.size, method))
         for k in out:
-            out[k][retry] = again[k]
+            if k not in ("shooting_iterations", "floquet_multiplier"):  # (why the shooting gave it up)
+                out[k][retry] = again[k]
     wall = time.perf_counter() - t0
     cols = _columns(scene)
     columns = {}
@@ -261,7 +263,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     units.update(min_slip_margin="-", max_friction_needed="-", hub_forces_N="N")
     meta = dict(
         fidelity=scene.model.fidelity, drive_pulley=order[drive.drive_pulley(scene)], settle_s=settle_s,
-        settle_tol=settle_tol, rerun_speeds=int(rerun.sum()), methods=used,
+        settle_tol=settle_tol, rerun_speeds=int(rerun.sum()), method=settings.method, methods=used,
         shooting_iterations=out["shooting_iterations"].astype(int).tolist(),
         floquet_multipliers=[None if not np.isfinite(m) else float(m) for m in out["floquet_multiplier"]],
         revolutions_per_cycle=settings.revolutions,

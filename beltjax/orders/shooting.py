@@ -165,10 +165,12 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
     # the implicit function theorem's step (module docstring): Phi integrated with gradients, P held
     plain = diffrax.diffeqsolve(diffrax.ODETerm(f), solver, t0=0.0, t1=period, dt0=period / 64, y0=c["y"],
                                 stepsize_controller=controller, max_steps=max_steps, throw=False)
-    correction = jnp.linalg.solve(c["P"] - eye, plain.ys[-1] - c["y"])
-    y_star = c["y"] - jnp.where(jnp.all(jnp.isfinite(correction)), correction, 0.0)
+    rhs = plain.ys[-1] - c["y"]
+    usable = c["done"] & jnp.all(jnp.isfinite(rhs))  # else no step (and no NaN in the gradient)
+    correction = jnp.linalg.solve(jnp.where(usable, c["P"] - eye, eye), jnp.where(usable, rhs, 0.0))
+    y_star = c["y"] - correction
     mult = spectral_radius(c["P"])
-    ok = c["done"] & (mult < 1.0) & jnp.all(jnp.isfinite(y_star))
+    ok = usable & (mult < 1.0) & jnp.all(jnp.isfinite(y_star))
     info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult,
                 steps=(c["steps"] + plain.stats["num_steps"]).astype(y0.dtype), ok=ok.astype(y0.dtype))
     return y_star, info

@@ -199,8 +199,9 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
     solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
     if settings.method == "shooting":  # y0 <- the periodic state, then one cycle from it
-        y0, shot = shooting.periodic_orbit(f, vector_field(*shooting.held((sc, inst))), y0, period, phase[:-1],
-                                           solver, ctrl, settings.max_steps, n)
+        y_orbit, shot = shooting.periodic_orbit(f, vector_field(*shooting.held((sc, inst))), y0, period, phase[:-1],
+                                                solver, ctrl, settings.max_steps, n)
+        y0 = jnp.where(shot["ok"] > 0.5, y_orbit, y0)  # no attracting cycle: a cycle from the start (flagged)
         ts = phase
     else:  # a transient of at least settle_s, two cycles recorded
         cycles = jnp.maximum(jnp.ceil(settle_s / period), 2.0)
