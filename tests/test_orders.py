@@ -314,6 +314,34 @@ def test_sweep_response_output_equals_the_response(tmp_path, batched):
         jax.jit(lambda s: case_outputs(s, {}, ("response",)))(sc)
 
 
+def test_sweep_response_settles_where_the_shooting_gave_up(monkeypatch):
+    """beltjax sweep's response output: a case whose shooting found no attracting cycle (here made
+    so by a stand-in around the real chunk runner, for the first case) runs again with the
+    settling transient, alone, and gets its result: response_over_speed's with the settling method."""
+    from beltjax import parameters, sweep
+    from beltjax.sweep import batch
+
+    real, passes = batch._run_local, []
+
+    def run_local(scene, chunks, rpm, opts, *args):
+        got = real(scene, chunks, rpm, opts, *args)
+        passes.append((opts.response.method, sum(len(next(iter(c.values()))) for c in chunks)))
+        if opts.response.method == "shooting":
+            got[0]["response_settling"][0] = np.inf
+        return got
+
+    monkeypatch.setattr(batch, "_run_local", run_local)
+    sc = loads_scene(SCENE)
+    values = {"tensioner.damping": np.array([0.08, 0.12]), "belt.length": np.array([1.786, 1.789])}  # as above
+    res = sweep.evaluate(sc, values, ("statics", "response"), settle_s=1.0)
+    assert passes == [("shooting", 2), ("settle", 1)]
+    case = parameters.set_values(sc, {k: v[0] for k, v in values.items()})
+    one = orders.response_over_speed(case, [600.0], settle_s=1.0, settings=orders.Settings(method="settle"))
+    assert abs(res["response_arm_p2p_deg"][0] - one.channel("arm_angle_deg", "p2p")[0]) < 1e-9
+    assert abs(res["response_settling"][0] / one.settling[0] - 1) < 1e-2  # (a ratio of small differences)
+    assert one.settling[0] < orders.SETTLE_TOL and list(res["status"]) == ["ok", "ok"]
+
+
 def test_gradient_over_speed_and_optimize_arm_motion():
     """beltjax optimize's arm_motion objective (the arm's largest peak-to-peak over 500-700 rpm,
     three speeds): its gradient in the tensioner's damping and spring rate, by reverse mode through

@@ -30,7 +30,7 @@ Sweep file (TOML)
     outputs = ["statics", "modal"]    # any of "statics", "modal", "campbell", "response" (default statics, modal)
     modes = 12                        # modes kept per case (default 12; rigid-body modes count)
     # rpm = [0, 2500, 50]             # campbell only: drive-pulley speeds A, B, STEP (rpm, B included)
-    # settle_s = 1.0                  # response only: transient before the recorded cycle (s, default 1)
+    # settle_s = 1.0                  # response only: settling transient where the shooting gives up (s, default 1)
     # chunk = 1                       # cases per compiled batch (default 1 per CPU device; on GPUs from memory and size)
     # samples = 200                   # random samples (or in each [[random]] table; all must agree)
     # seed = 0                        # default seed of the [[random]] tables

@@ -343,7 +343,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     backend: "local" (this process) or "dask" (chunks as tasks on a dask.distributed
     cluster; ``dask`` is a Client, a scheduler address, or None for the
     ``BELTJAX_DASK_SCHEDULER`` address or a LocalCluster of one process per core); settle_s: the
-    response output's transient time before its recorded cycle (s);
+    response output's transient time before its recorded cycle (s) where the shooting finds no
+    attracting cycle (those cases run again with the settling transient) or the scene settles;
     devices (local backend): shard each chunk over these JAX devices (``shard_map`` on
     the case axis; the chunk is a multiple of their number); "auto" uses every local
     accelerator when there are several (see :func:`_devices` for CPU devices), None none;
@@ -422,13 +423,24 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     devices = _devices(devices) if backend == "local" else None
     size = _chunk_size(n, chunk, rpm.size, devices, drive.n_independent(scene))
     chunks = [{k: v[sl] for k, v in run_values.items()} for sl in _slices(n, size)]
-    if backend == "local":
-        results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post)
-    else:
-        from beltjax.sweep.dask_backend import _run_dask  # imports batch: not at the top
+    def execute(chunks, opts, size, progress):
+        if backend == "local":
+            results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post)
+        else:
+            from beltjax.sweep.dask_backend import _run_dask  # imports batch: not at the top
 
-        results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
-    out = {k: np.concatenate([r[k] for r in results]) for k in results[0]}
+            results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
+        return {k: np.concatenate([r[k] for r in results]) for k in results[0]}
+
+    out = execute(chunks, opts, size, progress)
+    gave_up = np.flatnonzero(np.isposinf(out.get("response_settling", np.zeros(n))))
+    if gave_up.size:  # the shooting found no attracting cycle: those cases settle by transient (settle_s)
+        settle = dataclasses.replace(opts, response=dataclasses.replace(opts.response, method="settle"))
+        size = _chunk_size(gave_up.size, chunk, rpm.size, devices, drive.n_independent(scene))
+        again = execute([{k: v[gave_up][sl] for k, v in run_values.items()} for sl in _slices(gave_up.size, size)],
+                        settle, size, None)
+        for k in out:
+            out[k][gave_up] = again[k]
     # the checks that need each case's solved installation: the idler where its arm settles, the
     # string-spread limit at the installed tension (validate.solved_status)
     arm = out["tensioner_angle_deg"] if scene.tensioner is not None else None
