@@ -417,9 +417,9 @@ def build_parser() -> argparse.ArgumentParser:
     od.add_argument("scene", help="scene file (TOML)")
     od.add_argument("--rpm", type=_rpm_range, required=True,
                     help="drive pulley speeds A:B:STEP [rpm], end included, all > 0 (e.g. 600:6000:50)")
-    od.add_argument("--method", choices=("shooting", "settle"), default="shooting",
-                    help="periodic steady state by shooting (Newton on the one-cycle map; default; a drive with "
-                         "belt_slip settles) or by a settling transient")
+    od.add_argument("--method", default="shooting",  # checked by beltjax.orders (its METHODS)
+                    help="shooting or settle: periodic steady state by shooting (Newton on the one-cycle map; "
+                         "default; a drive with belt_slip settles) or by a settling transient")
     od.add_argument("--settle-s", dest="settle_s", type=_number("settle-s", True), default=1.0,
                     help="transient time before the recorded cycle [s] of the settling method and of the speeds "
                          "the shooting did not converge at (default 1; speeds that have not settled run again 4x "

@@ -15,7 +15,6 @@ results/running_belt_length.json.
 
 from __future__ import annotations
 
-import re
 import sys
 
 from _common import HERE, save_json, table
@@ -27,6 +26,7 @@ from beltjax.scene import load_scene, loads_scene  # noqa: E402
 
 sys.path.insert(0, str(HERE.parent / "tests"))
 from _creep_profile import belt_held, creeping, gripping  # noqa: E402
+from _scenes import loaded_two_pulley  # noqa: E402
 
 SCENES = HERE.parent / "scenes"
 LBF = 4.4482216152605
@@ -34,14 +34,10 @@ LBF = 4.4482216152605
 
 def _text(name: str) -> str:
     """The scene text of ``name``; "two_pulley": the two-pulley bench at 800 rpm with 6 N m on
-    the alternator and mu = 0.4 (as tests/test_operating_point.py)."""
+    the alternator and mu = 0.4 (tests/_scenes.py, as tests/test_operating_point.py)."""
     if name != "two_pulley":
         return (SCENES / name).read_text()
-    txt = (SCENES / "two_pulley_T400.toml").read_text()
-    txt = txt.replace("driven = false", "driven = true").replace("speed_rpm = 0.0", "speed_rpm = 800.0", 1)
-    txt = re.sub(r'fidelity = "ancf"', 'fidelity = "rotational"', txt)
-    txt = txt.replace("static_tension = 400.0", "static_tension = 400.0\nfriction_coefficient = 0.4")
-    return txt + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 6.0\n'
+    return loaded_two_pulley("rotational", 6.0, "friction_coefficient = 0.4")
 
 
 def main():

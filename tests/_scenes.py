@@ -2,6 +2,7 @@
 mechanical energy."""
 
 import pathlib
+import re
 
 SCENES = pathlib.Path(__file__).resolve().parents[1] / "scenes"
 
@@ -9,6 +10,17 @@ SCENES = pathlib.Path(__file__).resolve().parents[1] / "scenes"
 def scene_text(name):
     """The text of the example scene file ``scenes/<name>``."""
     return (SCENES / name).read_text()
+
+
+def loaded_two_pulley(fidelity: str, torque: float = 6.0, extra_belt: str = "") -> str:
+    """The two-pulley bench (``two_pulley_T400.toml``) driven at 800 rpm with ``torque`` (N m) on
+    the alternator, in ``fidelity`` (4 elements per span), ``extra_belt`` added to its [belt]."""
+    txt = scene_text("two_pulley_T400.toml")
+    txt = txt.replace("driven = false", "driven = true").replace("speed_rpm = 0.0", "speed_rpm = 800.0", 1)
+    txt = re.sub(r'fidelity = "ancf"', f'fidelity = "{fidelity}"', txt)
+    txt = re.sub(r"elements_per_span = \d+", "elements_per_span = 4", txt)
+    txt = txt.replace("static_tension = 400.0", "static_tension = 400.0\n" + extra_belt)
+    return txt + f'\n[[torque]]\npulley = "alternator"\nmean_Nm = {torque}\n'
 
 
 def substitute(text, *pairs):

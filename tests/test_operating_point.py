@@ -27,17 +27,9 @@ from beltjax.scene import load_scene, loads_scene
 
 from _creep_profile import belt_held, creeping, gripping
 from _scenes import SCENES, scene_text
+from _scenes import loaded_two_pulley as _two_pulley  # M_ALT on the alternator by default
 
 M_ALT = 6.0  # N m on the alternator (CCW: against the clockwise travel)
-
-
-def _two_pulley(fidelity: str, torque: float = M_ALT, extra_belt: str = "") -> str:
-    txt = scene_text("two_pulley_T400.toml")
-    txt = txt.replace("driven = false", "driven = true").replace("speed_rpm = 0.0", "speed_rpm = 800.0", 1)
-    txt = re.sub(r'fidelity = "ancf"', f'fidelity = "{fidelity}"', txt)
-    txt = re.sub(r"elements_per_span = \d+", "elements_per_span = 4", txt)
-    txt = txt.replace("static_tension = 400.0", "static_tension = 400.0\n" + extra_belt)
-    return txt + f'\n[[torque]]\npulley = "alternator"\nmean_Nm = {torque}\n'
 
 
 def _tensioner(drag: float = 0.02) -> str:

@@ -278,6 +278,7 @@ def test_what_has_no_steady_state_is_refused(tmp_path, capsys, change, key):
     (["--rpm", "500:700:100", "--samples", "8"], "samples"),
     (["--rpm", "500:700:100", "--max-order", "100"], "max_order"),
     (["--rpm", "500:700:100", "--settle-s", "-1"], "settle-s"),
+    (["--rpm", "500:700:100", "--method", "shootin"], "method"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, key):
     scene = tmp_path / "s.toml"

@@ -65,7 +65,7 @@ def summary(result: OrdersResult) -> str:
     m = result.meta
     revs = m["revolutions_per_cycle"]
     n_shot = m["methods"].count("shooting")
-    longer = sum(x.startswith("settle") and x != f"settle {m['settle_s']:g} s" for x in m["methods"])
+    longer = m["rerun_speeds"]  # (with the settling method: those run again longer)
     how = (f"by shooting at {n_shot}, a settling transient at {len(rpm) - n_shot}" if m["method"] == "shooting" else
            f"settled {m['settle_s']:g} s, {longer} speed{'' if longer == 1 else 's'} run again "
            f"{RETRY_FACTOR:g}x longer")

@@ -213,7 +213,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
                                   saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
                                   max_steps=settings.max_steps, throw=False)
     ys = sol.ys
-    early, late = (None, ys) if settings.method == "shooting" else (ys[: K + 1], ys[K + 1 :])
+    late = ys[-(K + 1) :]  # the recorded cycle (and its end)
     t_rec = ts[-(K + 1) : -1]
     M_full = drive.full_mass_matrix(sc, inst)
     chans = jax.vmap(lambda t, y: _outputs_one(t, y, sc, inst, M_full))(t_rec, late[:-1])
@@ -243,7 +243,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         creeping = None
         if belt_slip.n_states(sc):  # the slip states drift, and so do the creeping pulleys' angles
             creeping = jnp.zeros(n).at[: belt_slip.rotations(sc)].set(1.0)
-        out["settling"] = _settling(early[:, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
+        out["settling"] = _settling(ys[: K + 1, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
         out["shooting_iterations"], out["floquet_multiplier"] = jnp.asarray(0.0), jnp.asarray(jnp.nan)
     out["converged"] = conv
     out["supercritical"] = critical.supercritical(sc, qi, inst, v).astype(jnp.float64)
