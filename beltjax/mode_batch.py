@@ -29,34 +29,37 @@ SURE = 0.8
 ABSENT = 0.1
 
 
-def match(F, W, owner, P, rtol: float = RTOL_REPEATED):
+def projections(W, P, xp=np):
+    """Projections (..., r, c) of the reference's unit whitened shapes P (n, r) onto the unit
+    columns of W (..., n, c): the complex curve . mode products whose squares are the MACs.
+    ``xp``: numpy, or jax.numpy inside a compiled case (a sweep computes them on the device so
+    that a chunk's shapes need not travel to the host)."""
+    nrm = xp.linalg.norm(W, axis=-2, keepdims=True)
+    return xp.matmul(xp.conj(P).T, W / xp.where(nrm > 0, nrm, 1.0))
+
+
+def match(F, A, owner, rtol: float = RTOL_REPEATED):
     """Frequencies and MACs of the reference curves in each case.
 
-    F (B, k) Hz ascending; W (B, n, c) whitened shapes; owner (B, c) mode of each column; P
-    (n, r) the reference's unit whitened shapes.  Returns (freqs (B, r) Hz, NaN where a curve is
-    absent; mac (B, r); done (B,) bool: the cases matched here, the rest left for the tracker).
+    F (B, k) Hz ascending; A (B, r, c) the reference's unit shapes projected on each case's unit
+    whitened shapes (:func:`projections`); owner (B, c) mode of each column.  Returns (freqs (B,
+    r) Hz, NaN where a curve is absent; mac (B, r); done (B,) bool: the cases matched here, the
+    rest left for the tracker).
     """
-    F, W, owner = np.asarray(F, float), np.asarray(W), np.asarray(owner)
+    F, A, owner = np.asarray(F, float), np.asarray(A), np.asarray(owner)
     B, k = F.shape
-    r = P.shape[1]
+    r = A.shape[1]
     out_f, out_mac = np.full((B, r), np.nan), np.full((B, r), np.nan)
     done = np.zeros(B, bool)
-    if B == 0 or W.shape[2] != k or np.iscomplexobj(W) and np.any(np.imag(W) != 0):
+    if B == 0 or A.shape[2] != k or owner.shape != (B, k):  # one column per mode (the real eigen-solve)
         return out_f, out_mac, done
-    W = np.real(W)
-    ok = np.all(np.isfinite(F), axis=1) & np.all(np.isfinite(W), axis=(1, 2)) & np.all(owner == np.arange(k), axis=1)
+    ok = np.all(np.isfinite(F), axis=1) & np.all(np.isfinite(A), axis=(1, 2)) & np.all(owner == np.arange(k), axis=1)
     if not ok.any():
         return out_f, out_mac, done
-    Fo, Wo = F[ok], W[ok]
-    Wo = Wo / np.where((nrm := np.linalg.norm(Wo, axis=1, keepdims=True)) > 0, nrm, 1.0)
+    Fo, A = F[ok], A[ok]
     same = np.abs(np.diff(Fo, axis=1)) <= rtol * np.maximum(np.abs(Fo[:, 1:]), np.abs(Fo[:, :-1]))
     ids = np.concatenate([np.zeros((len(Fo), 1), int), np.cumsum(~same, axis=1)], axis=1)  # (b, k) cluster ids
     C = ids[:, :, None] == ids[:, None, :]  # (b, k, k) same cluster
-    # (b, r, k) curve . mode, as real matrix products (numpy's einsum of complex by real is a slow loop)
-    Pc = np.asarray(P).conj()
-    A = np.matmul(np.real(Pc).T, Wo)
-    if np.iscomplexobj(Pc) and np.any(np.imag(Pc) != 0):
-        A = A + 1j * np.matmul(np.imag(Pc).T, Wo)
     single = np.abs(A) ** 2
     sub = single @ C  # projection of each curve onto each mode's cluster
     best = np.argmax(sub, axis=2)  # the first member of the best cluster

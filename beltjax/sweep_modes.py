@@ -20,7 +20,9 @@ from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 
 #: per-case mode shapes of a tracked batch (dropped once the chunk is tracked)
-SHAPE_KEYS = ("modal_W", "modal_owner", "campbell_W", "campbell_owner")
+SHAPE_KEYS = ("modal_W", "modal_owner", "modal_proj", "campbell_W", "campbell_owner")
+#: of those, the ones a chunk keeps on its device until the tracking asks for some cases'
+DEVICE_KEYS = ("modal_W",)
 
 
 def references(scene: Scene, outputs, modes: int, rpm=None) -> dict:
@@ -47,14 +49,18 @@ def track_chunk(out: dict[str, np.ndarray], refs: Mapping[str, Any], modes: int)
     (``campbell_mode_match``: the lowest MAC of a case).  Without a reference: the lowest
     ``modes`` sorted (modal) or tracked from the case's own lowest speed (campbell)."""
     if "modal_W" in out:
-        F, W, own = out.pop("frequencies_hz"), out.pop("modal_W"), out.pop("modal_owner")
+        F, W, own = out.pop("frequencies_hz"), out.pop("modal_W"), np.asarray(out.pop("modal_owner"))
+        A = out.pop("modal_proj", None)
         ref = refs.get("modal")
         n = ref[0].freqs.size if ref else modes
         Ft, mac = np.full((len(F), n), np.nan), np.full((len(F), n), np.nan)
         done = np.zeros(len(F), bool)
         if ref is not None:  # every case whose match is certain at once (mode_batch), the rest one by one
-            Ft, mac, done = mode_batch.match(F, W, own, ref[0].W)
-        for i in np.flatnonzero(~done):
+            A = mode_batch.projections(np.asarray(W), ref[0].W) if A is None else A
+            Ft, mac, done = mode_batch.match(F, A, own)
+        rest = np.flatnonzero(~done)
+        W = dict(zip(rest.tolist(), np.asarray(W[rest]))) if rest.size else {}  # from the device: these cases' only
+        for i in rest:
             if not (np.all(np.isfinite(F[i])) and np.all(np.isfinite(W[i]))):
                 continue
             if ref is None:

@@ -185,7 +185,7 @@ def test_unconverged_cases_are_retried_with_speed_stepping(scene, monkeypatch):
     not_converged = sweep.STATUS.index("not_converged")
 
     def fake_batch_fn(opts, devices, keys):
-        def batch(scene, X, rpm):
+        def batch(scene, X, rpm, ref=None):
             EI = np.asarray(X)[:, keys.index("belt.EI")]
             assert EI.shape == (CHUNK,)  # always the padded chunk size: no recompilation
             fail = (opts.steps == 1) & (EI > 0.04)

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import critical, drive, drive_modal, friction, mode_tracking, parameters, statics, sweep_modes, validate
+from beltjax import critical, drive, drive_modal, friction, mode_batch, mode_tracking, parameters, statics, sweep_modes, validate
 from beltjax.scene import Scene
 from beltjax.sweep.spec import CAMPBELL_CHUNK_POINTS, MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
 from beltjax.drive.effects import effects_of
@@ -33,7 +33,7 @@ class _Options:
 
 def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] = ("statics", "modal"),
                  modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1,
-                 track: int = 0, settle_s: float = 1.0, response=None) -> dict[str, jax.Array]:
+                 track: int = 0, settle_s: float = 1.0, response=None, reference=None) -> dict[str, jax.Array]:
     """Outputs of one case: ``scene`` with ``values`` {path: scalar} set (pure JAX: jit, vmap, grad).
 
     outputs, modes, gyroscopic (solve the gyroscopic problem of the moving belt) and steps
@@ -48,7 +48,9 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     with a friction coefficient), and the modes are about that state (as ``beltjax modal``).  With
     ``track`` > 0 the lowest ``track`` modes come with their mass-whitened shapes for mode
     tracking (:func:`beltjax.drive_modal.tracking_shapes`): modal_W, modal_owner, campbell_W,
-    campbell_owner (the frequencies are then the lowest ``track``, sorted).  ``response``: the
+    campbell_owner (the frequencies are then the lowest ``track``, sorted); with ``reference`` (n, r),
+    the nominal's unit whitened shapes, also modal_proj (r, c): their projections on the case's
+    (:func:`beltjax.mode_batch.projections`, the batched matching's input).  ``response``: the
     periodic steady state at the case's drive speed after ``settle_s`` s, with the static
     :class:`beltjax.orders.Settings` ``response`` (default, outside jit only:
     :func:`beltjax.orders.for_scene`)
@@ -91,6 +93,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             t = drive_modal.tracking_shapes(sc, qi, inst, v, track, gyroscopic, full=False)
             stable, f = t["stable"], t["freqs"]
             res["modal_W"], res["modal_owner"] = t["W"], t["owner"]
+            if reference is not None:
+                res["modal_proj"] = mode_batch.projections(t["W"], reference, jnp)
         else:
             stable, f, *_ = drive_modal.frequencies_about(sc, qi, inst, v, gyroscopic)
             f = f[:modes]
@@ -142,9 +146,9 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     res["code"] = jnp.select(conds, [jnp.asarray(c) for c in codes], jnp.asarray(_CODE["ok"]))
     return res
 
-def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options) -> dict:
+def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options, ref=None) -> dict:
     return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track, opts.settle_s,
-                        opts.response)
+                        opts.response, ref)
 
 def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
     """``values`` completed with the scene's value of every other scalar parameter
@@ -174,12 +178,13 @@ def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
 
 @functools.cache
 def _batch_fn(opts: _Options, devices: tuple | None, keys: tuple[str, ...]) -> Callable:
-    """The jitted batch ``(scene, X (B, len(keys)), rpm (S,)) -> outputs (B, ...)``, column j of X
-    the values of parameter ``keys[j]``; sharded over ``devices`` (shard_map on the case axis)
+    """The jitted batch ``(scene, X (B, len(keys)), rpm (S,), ref (n, r) or None) -> outputs (B,
+    ...)``, column j of X the values of parameter ``keys[j]``, ref the nominal's whitened shapes
+    (:func:`case_outputs`' reference); sharded over ``devices`` (shard_map on the case axis)
     when given.  One per option set and parameter set, shared by all sweeps."""
 
-    def batch(scene, X, rpm):
-        return jax.vmap(lambda x: _case(scene, dict(zip(keys, x)), rpm, opts))(X)
+    def batch(scene, X, rpm, ref=None):
+        return jax.vmap(lambda x: _case(scene, dict(zip(keys, x)), rpm, opts, ref))(X)
 
     if devices is None:
         return jax.jit(batch)
@@ -187,7 +192,7 @@ def _batch_fn(opts: _Options, devices: tuple | None, keys: tuple[str, ...]) -> C
     from jax.sharding import PartitionSpec as P
 
     mesh = Mesh(np.asarray(devices), ("cases",))
-    return jax.jit(jax.shard_map(batch, mesh=mesh, in_specs=(P(), P("cases"), P()), out_specs=P("cases"),
+    return jax.jit(jax.shard_map(batch, mesh=mesh, in_specs=(P(), P("cases"), P(), P()), out_specs=P("cases"),
                                  check_vma=False))
 
 def _devices(devices="auto") -> tuple | None:
@@ -278,39 +283,44 @@ def _matrix(values: Mapping[str, np.ndarray], keys: tuple[str, ...], size: int) 
     return np.concatenate([X, np.repeat(X[-1:], size - len(X), axis=0)]) if len(X) < size else X
 
 def _launch_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options, size: int,
-                  devices: tuple | None):
+                  devices: tuple | None, ref=None):
     """Start one chunk (<= size cases, padded to ``size``) on the device; returns what
     :func:`_collect_chunk` needs (JAX dispatches asynchronously: the host is free meanwhile)."""
     keys = tuple(sorted(values))
-    return keys, values, _batch_fn(opts, devices, keys)(scene, _matrix(values, keys, size), rpm)
+    return keys, values, ref, _batch_fn(opts, devices, keys)(scene, _matrix(values, keys, size), rpm, ref)
 
 
 def _collect_chunk(scene: Scene, launched, rpm: np.ndarray, opts: _Options, size: int,
                    devices: tuple | None) -> dict[str, np.ndarray]:
-    """The outputs of a launched chunk as numpy; cases whose statics did not converge are run
-    again with speed stepping (statics.RETRY_STEPS), as :func:`beltjax.statics.analyse_statics` does."""
-    keys, values, raw = launched
+    """The outputs of a launched chunk as numpy (the shapes of sweep_modes.DEVICE_KEYS stay on the
+    device: the tracking fetches the few cases it needs); cases whose statics did not converge
+    are run again with speed stepping (statics.RETRY_STEPS), as :func:`beltjax.statics.analyse_statics` does."""
+    keys, values, ref, raw = launched
     n = len(next(iter(values.values())))
-    out = {k: np.array(np.asarray(a)[:n]) for k, a in raw.items()}
+    lazy = sweep_modes.DEVICE_KEYS
+    out = {k: a[:n] if k in lazy else np.array(np.asarray(a)[:n]) for k, a in raw.items()}
     again = np.flatnonzero(out["code"] == _CODE["not_converged"])
     if again.size:
         fn8 = _batch_fn(dataclasses.replace(opts, steps=statics.RETRY_STEPS), devices, keys)
-        redo = fn8(scene, _matrix({k: np.asarray(values[k])[again] for k in keys}, keys, size), rpm)
+        redo = fn8(scene, _matrix({k: np.asarray(values[k])[again] for k in keys}, keys, size), rpm, ref)
         for k in out:
-            out[k][again] = np.asarray(redo[k])[: again.size]
+            if k in lazy:
+                out[k] = out[k].at[again].set(redo[k][: again.size])
+            else:
+                out[k][again] = np.asarray(redo[k])[: again.size]
     return out
 
 
 def _run_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options,
-               size: int, devices: tuple | None) -> dict[str, np.ndarray]:
-    """One chunk (<= size cases), padded to ``size``, its outputs as numpy (with the retry)."""
-    return _collect_chunk(scene, _launch_chunk(scene, values, rpm, opts, size, devices), rpm, opts, size, devices)
+               size: int, devices: tuple | None, ref=None) -> dict[str, np.ndarray]:
+    """One chunk (<= size cases), padded to ``size``, its outputs (with the retry)."""
+    return _collect_chunk(scene, _launch_chunk(scene, values, rpm, opts, size, devices, ref), rpm, opts, size, devices)
 
 def _slices(n: int, size: int) -> list[slice]:
     return [slice(s, min(s + size, n)) for s in range(0, n, size)]
 
 def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int,
-               devices: tuple | None, progress, post=lambda r: r) -> list[dict]:
+               devices: tuple | None, progress, post=lambda r: r, ref=None) -> list[dict]:
     """The chunks one after the other in this process (``post`` applied to each chunk's outputs).
     On accelerators the next chunk is launched before this one's outputs are collected and
     post-processed, so that the host's work (the mode tracking) overlaps the device's; on CPU one
@@ -318,11 +328,11 @@ def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options
     :mod:`beltjax.runtime`)."""
     results, done, n = [], 0, sum(len(next(iter(c.values()))) for c in chunks)
     ahead = (devices or tuple(jax.local_devices()[:1]))[0].platform != "cpu"
-    pending = _launch_chunk(scene, chunks[0], rpm, opts, size, devices) if chunks else None
+    pending = _launch_chunk(scene, chunks[0], rpm, opts, size, devices, ref) if chunks else None
     for i, c in enumerate(chunks):
         if pending is None:
-            pending = _launch_chunk(scene, c, rpm, opts, size, devices)
-        nxt = _launch_chunk(scene, chunks[i + 1], rpm, opts, size, devices) if ahead and i + 1 < len(chunks) else None
+            pending = _launch_chunk(scene, c, rpm, opts, size, devices, ref)
+        nxt = _launch_chunk(scene, chunks[i + 1], rpm, opts, size, devices, ref) if ahead and i + 1 < len(chunks) else None
         results.append(post(_collect_chunk(scene, pending, rpm, opts, size, devices)))
         pending = nxt
         done += len(next(iter(c.values())))
@@ -412,6 +422,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track,
                     settle_s=float(settle_s), response=for_scene(scene) if "response" in outputs else None)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
+    ref = np.asarray(refs["modal"][0].W) if track and refs.get("modal") else None  # projected on the device
     pre = _precheck(scene, values, n)
     invalid = pre != _CODE["ok"]
     if invalid.all():
@@ -425,11 +436,11 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     chunks = [{k: v[sl] for k, v in run_values.items()} for sl in _slices(n, size)]
     def execute(chunks, opts, size, progress):
         if backend == "local":
-            results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post)
+            results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post, ref)
         else:
             from beltjax.sweep.dask_backend import _run_dask  # imports batch: not at the top
 
-            results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post)
+            results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post, ref)
         return {k: np.concatenate([r[k] for r in results]) for k in results[0]}
 
     out = execute(chunks, opts, size, progress)

@@ -18,7 +18,7 @@ from beltjax.sweep.batch import _Options, _run_chunk
 #: worker with threads, or several workers in one process) deadlocked XLA's CPU runtime here
 _EXECUTION_LOCK = threading.Lock()
 
-def _chunk_task(scene_np, values, rpm, opts: _Options, size: int, cache_dir: str | None):
+def _chunk_task(scene_np, values, rpm, opts: _Options, size: int, cache_dir: str | None, ref=None):
     """A Dask task: one chunk on a worker (the scene travels with numpy leaves)."""
     with _EXECUTION_LOCK:
         if cache_dir and not jax.config.jax_compilation_cache_dir:
@@ -28,7 +28,7 @@ def _chunk_task(scene_np, values, rpm, opts: _Options, size: int, cache_dir: str
             except Exception:  # pragma: no cover - a worker without a writable cache
                 pass
         scene = jax.tree.map(jnp.asarray, scene_np)
-        return _run_chunk(scene, values, rpm, opts, size, None)
+        return {k: np.asarray(v) for k, v in _run_chunk(scene, values, rpm, opts, size, None, ref).items()}
 
 def _dask_client(address):
     """(client, owned) for ``address``: a dask.distributed Client, a scheduler address, or None for a
@@ -50,7 +50,7 @@ def _dask_client(address):
     return Client(cluster), True
 
 def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options, size: int, dask,
-              progress, post=lambda r: r) -> list[dict]:
+              progress, post=lambda r: r, ref=None) -> list[dict]:
     """The chunks as tasks on a dask.distributed cluster (results in chunk order; ``post`` applied
     to each chunk's outputs as it arrives)."""
     from dask.distributed import as_completed
@@ -61,7 +61,7 @@ def _run_dask(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options,
     try:
         [sfut] = client.scatter([jax.tree.map(np.asarray, scene)], broadcast=True, hash=False)
         cache = jax.config.jax_compilation_cache_dir
-        futs = [client.submit(_chunk_task, sfut, c, rpm, opts, size, cache, pure=False) for c in chunks]
+        futs = [client.submit(_chunk_task, sfut, c, rpm, opts, size, cache, ref, pure=False) for c in chunks]
         index = {f.key: i for i, f in enumerate(futs)}
         done = 0
         for fut in as_completed(futs):
