@@ -49,3 +49,43 @@ def test_batched_matching_equals_the_tracker(monkeypatch):
             assert np.array_equal(np.isnan(f[i]), np.isnan(want))
             assert np.allclose(f[i][found], want[found], rtol=1e-12)
             assert np.allclose(mac[i][found], m[:n][found], rtol=1e-9, atol=1e-12)
+
+
+def test_batched_matching_with_triples_swaps_and_absent_curves():
+    """Synthetic cases (random orthonormal shapes): clusters of three and two repeated modes, modes
+    swapped against the reference's order, a reference curve absent from every case, and cases
+    the batched matching must leave to the tracker (a curve between two modes); where it takes a
+    case its result is the tracker's."""
+    rng = np.random.default_rng(3)
+    n, k, B = 14, 8, 40
+    freqs = np.array([1.0, 2.0, 3.0, 3.0, 3.0, 5.0, 6.0, 6.0])
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    ref = mode_tracking.mode_basis(freqs, Q[:, :k])
+    ref = mode_tracking.Modes(np.r_[ref.freqs, 7.0], np.c_[ref.W, Q[:, k]].astype(complex), np.r_[ref.cluster, 9])
+    F, W = np.zeros((B, k)), np.zeros((B, n, k))
+    for b in range(B):
+        R = np.eye(k)
+        for c in (slice(2, 5), slice(6, 8)):  # any basis of the repeated modes' eigenspace
+            R[c, c], _ = np.linalg.qr(rng.standard_normal((R[c, c].shape[0],) * 2))
+        Wb = Q[:, :k] @ R
+        f = freqs * (1.0 + 0.01 * rng.standard_normal())
+        if b % 3 == 1:  # the two lowest modes crossed: the case's 1st mode has the reference's 2nd shape
+            Wb[:, :2] = Wb[:, [1, 0]]
+        if b % 5 == 2:  # the 6th mode half the reference's 6th shape, half the absent curve's
+            Wb[:, 5] = (Q[:, 5] + Q[:, k]) / np.sqrt(2)
+        F[b], W[b] = f, Wb
+    own = np.tile(np.arange(k), (B, 1))
+    A = mode_batch.projections(W, ref.W)
+    f, mac, done = mode_batch.match(F, A, own)
+    assert done.sum() >= B // 2 and not done[2::5].any()  # the mixed cases left to the tracker
+    for i in np.flatnonzero(done):
+        md = mode_tracking.mode_basis(F[i], W[i], own[i])
+        index, m = mode_tracking.Tracker(ref).step(md)
+        found = index >= 0
+        assert not found[-1] and np.isnan(f[i, -1])  # the curve no case has
+        assert f[i, 0] == F[i, 1 if i % 3 == 1 else 0]  # the crossed modes keep their columns
+        want = np.full(ref.freqs.size, np.nan)
+        want[found] = md.freqs[index[found]]
+        assert np.array_equal(np.isnan(f[i]), np.isnan(want))
+        assert np.allclose(f[i][found], want[found], rtol=1e-12)
+        assert np.allclose(mac[i][found], m[found], rtol=1e-9, atol=1e-12)
