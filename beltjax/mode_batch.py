@@ -3,7 +3,9 @@ result of :class:`beltjax.mode_tracking.Tracker` (a fresh tracker seeded with th
 one step per case) for every case whose match is certain, without a Python loop over cases.
 
 Measured need: a GPU computes the statics and modes of 2,048 cases of the two-pulley bench in
-93 ms, and the tracker's loop took 3 s for them on the host (benchmarks/README.md §6b).
+78 ms, and the tracker's loop took 3 s for them on the host (benchmarks/README.md §6b).  The
+input is the projections of the reference's shapes on each case's (:func:`projections`), which
+a sweep computes on the device: a chunk's shapes need not travel to the host.
 
 A case is matched here when its shapes are real and M-orthonormal (the non-gyroscopic
 eigen-solve: one column per mode) and every reference curve's best projection onto a cluster of

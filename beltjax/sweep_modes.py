@@ -3,8 +3,10 @@
 A sweep's case function returns, with the frequencies, the mass-whitened shapes of a few
 more modes than kept (:func:`beltjax.drive_modal.tracking_shapes`); :func:`track_chunk`
 turns each chunk's shapes into frequency columns that follow the nominal scene's modes
-(:func:`references`), by the tracker of :mod:`beltjax.mode_tracking`, and drops the shapes,
-so memory stays that of a chunk.  Column k is the nominal's k-th mode in every case: an
+(:func:`references`), at once where :func:`beltjax.mode_batch.match` can (from the projections
+the compiled case made on the device), else by the tracker of :mod:`beltjax.mode_tracking` (the
+shapes of those cases only fetched from the device), and drops the shapes, so memory stays that
+of a chunk.  Column k is the nominal's k-th mode in every case: an
 engineer reading sweep.csv finds a mode in one column whatever its rank in a case.
 """
 
