@@ -7,16 +7,20 @@ Measured need: a GPU computes the statics and modes of 2,048 cases of the two-pu
 input is the projections of the reference's shapes on each case's (:func:`projections`), which
 a sweep computes on the device: a chunk's shapes need not travel to the host.
 
-A case is matched here when its shapes are real and M-orthonormal (the non-gyroscopic
-eigen-solve: one column per mode) and every reference curve's best projection onto a cluster of
-the case's repeated modes is either above :data:`SURE` or below :data:`ABSENT`, with no cluster
-chosen by more curves than it has modes.  Then the tracker's optimal assignment is exactly
-"each sure curve to its best cluster" (a curve's projections onto the clusters sum to at most 1,
-and so do a cluster's over the orthonormal curves per mode: moving a sure curve loses more than
-any other curve can gain), absent curves stay unmatched (below the tracker's MIN_MAC), a cluster's
+A case is matched here when every reference curve's best projection onto a cluster of the
+case's repeated modes is either above :data:`SURE` (and above its best projection onto any other
+cluster by more than :data:`ABSENT`) or below :data:`ABSENT`, with no cluster chosen by more
+curves than it has modes, and each cluster of several modes has real M-orthonormal shapes (the
+non-gyroscopic eigen-solve, one column per mode; a gyroscopic mode's columns are one complex
+direction, which a simple mode's first column stands for, but several of them are no basis of a
+cluster).  Then the tracker's optimal assignment is exactly "each sure curve to its best
+cluster": every sure curve has its row's maximum, and moving m of them loses more than m x
+ABSENT while the m columns they free can give the absent curves at most m x ABSENT (one
+augmenting path each); absent curves stay unmatched (below the tracker's MIN_MAC), a cluster's
 curves take its modes in ascending order, and each curve's MAC after the tracker's Procrustes
 rotation of the cluster is |sqrt(M^H M)_kk|^2 with M = W_c^H P (the cluster's shapes against
-its curves').  Every other case is left to the tracker (``done`` False).
+its curves').  Gyroscopic shapes are not M-orthogonal, hence the margin; orthonormal ones have
+it (0.8 against at most 0.2).  Every other case is left to the tracker (``done`` False).
 """
 
 from __future__ import annotations
@@ -44,7 +48,9 @@ def match(F, A, owner, rtol: float = RTOL_REPEATED):
     """Frequencies and MACs of the reference curves in each case.
 
     F (B, k) Hz ascending; A (B, r, c) the reference's unit shapes projected on each case's unit
-    whitened shapes (:func:`projections`); owner (B, c) mode of each column.  Returns (freqs (B,
+    whitened shapes (:func:`projections`); owner (B, c) mode of each column (ascending, the same in
+    every case; two per gyroscopic mode, whose first stands for it as in
+    :func:`beltjax.mode_tracking.mode_basis`).  Returns (freqs (B,
     r) Hz, NaN where a curve is absent; mac (B, r); done (B,) bool: the cases matched here, the
     rest left for the tracker).
     """
@@ -53,9 +59,18 @@ def match(F, A, owner, rtol: float = RTOL_REPEATED):
     r = A.shape[1]
     out_f, out_mac = np.full((B, r), np.nan), np.full((B, r), np.nan)
     done = np.zeros(B, bool)
-    if B == 0 or A.shape[2] != k or owner.shape != (B, k):  # one column per mode (the real eigen-solve)
+    o = owner[0] if B else np.zeros(0, int)
+    if B == 0 or owner.shape != (B, A.shape[2]) or np.any(owner != o) or not np.array_equal(np.unique(o), np.arange(k)):
+        return out_f, out_mac, done  # not one column layout with every mode in it
+    cols = np.searchsorted(o, np.arange(k)) if np.all(np.diff(o) >= 0) else None
+    if cols is None:
         return out_f, out_mac, done
-    ok = np.all(np.isfinite(F), axis=1) & np.all(np.isfinite(A), axis=(1, 2)) & np.all(owner == np.arange(k), axis=1)
+    A = A[:, :, cols]  # a mode's first column (a gyroscopic mode's columns are one complex direction)
+    ok = np.all(np.isfinite(F), axis=1) & np.all(np.isfinite(A), axis=(1, 2))
+    multi_col = np.bincount(o, minlength=k) > 1  # gyroscopic modes: their columns are no basis of a cluster
+    if multi_col.any():  # so a case whose repeated modes have several columns goes to the tracker
+        rep = np.abs(np.diff(F, axis=1)) <= rtol * np.maximum(np.abs(F[:, 1:]), np.abs(F[:, :-1]))
+        ok &= ~np.any(rep & (multi_col[1:] | multi_col[:-1]), axis=1)
     if not ok.any():
         return out_f, out_mac, done
     Fo, A = (F, A) if ok.all() else (F[ok], A[ok])
@@ -79,7 +94,11 @@ def match(F, A, owner, rtol: float = RTOL_REPEATED):
     E = sure[:, :, None] & sure[:, None, :] & (best[:, :, None] == best[:, None, :])  # (b, r, r) sure, same cluster
     count = E.sum(axis=2)  # sure curves in each curve's cluster
     rank = np.sum(E & (np.arange(r)[None, :] < np.arange(r)[:, None]), axis=2)  # among its cluster's, ascending
-    good = np.all(sure | absent, axis=1) & np.all(~sure | (count <= size), axis=1)
+    # the runner-up outside the best cluster: a sure curve must beat it by more than any absent curve
+    # could gain from the column it would free (orthonormal shapes do: 0.8 against at most 0.2)
+    second = np.max(np.where(lo[:, None, :] == best[:, :, None], -np.inf, sub), axis=2, initial=-np.inf)
+    good = (np.all(sure | absent, axis=1) & np.all(~sure | (count <= size), axis=1)
+            & np.all(~sure | (bv - second > ABSENT), axis=1))
     index = best + rank  # clusters are contiguous and ascending: the rank-th member
     f = np.where(sure, np.take_along_axis(Fo, np.clip(index, 0, k - 1), axis=1), np.nan)
     mac = np.where(sure, bv, np.nan)

@@ -89,3 +89,36 @@ def test_batched_matching_with_triples_swaps_and_absent_curves():
         assert np.array_equal(np.isnan(f[i]), np.isnan(want))
         assert np.allclose(f[i][found], want[found], rtol=1e-12)
         assert np.allclose(mac[i][found], m[found], rtol=1e-9, atol=1e-12)
+
+
+def test_batched_matching_of_gyroscopic_shapes():
+    """Gyroscopic modes (two columns each, one complex direction; shapes not orthogonal, as with
+    a moving belt) against a gyroscopic reference: the batched matching takes the cases whose
+    curves each have a clear best mode and gives the tracker's result; cases where a curve's two
+    best modes are close (gyroscopic shapes, not M-orthogonal, can be) go to the tracker."""
+    rng = np.random.default_rng(5)
+    n, k, B = 12, 6, 30
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)) + 1j * rng.standard_normal((n, n)))
+    U = Q[:, :k].copy()
+    U[:, 0] = np.real(U[:, 0]) / np.linalg.norm(np.real(U[:, 0]))  # a rigid-body mode: one real column
+    freqs = np.r_[0.0, 10.0, 20.0, 30.0, 40.0, 50.0]
+    ref = mode_tracking.Modes(freqs, U.copy(), mode_tracking.clusters(freqs))
+    own = np.r_[0, np.repeat(np.arange(1, k), 2)]
+    F, W = np.zeros((B, k)), np.zeros((B, n, own.size), complex)
+    for b in range(B):
+        V = U + 0.05 * (rng.standard_normal((n, k)) + 1j * rng.standard_normal((n, k)))
+        if b % 4 == 3:  # the 4th mode's shape near the 3rd's (MAC 0.92): the 3rd curve's two best close
+            V[:, 3] = U[:, 2] + 0.3 * Q[:, k + 1]
+        F[b] = freqs * (1 + 0.01 * b)
+        phase = np.exp(1j * rng.uniform(0, 2 * np.pi, (2, k)))
+        W[b] = np.c_[V[:, :1], *[np.c_[V[:, j] * phase[0, j] * 2.0, V[:, j] * phase[1, j]] for j in range(1, k)]]
+    A = mode_batch.projections(W, ref.W)
+    f, mac, done = mode_batch.match(F, A, np.tile(own, (B, 1)))
+    assert done.sum() >= B // 2 and not done[3::4].any()
+    for i in np.flatnonzero(done):
+        md = mode_tracking.mode_basis(F[i], W[i], own)
+        index, m = mode_tracking.Tracker(ref).step(md)
+        found = index >= 0
+        assert found.all()
+        np.testing.assert_allclose(f[i], md.freqs[index], rtol=1e-12)
+        np.testing.assert_allclose(mac[i], m, rtol=1e-9, atol=1e-12)
