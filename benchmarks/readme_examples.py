@@ -56,6 +56,8 @@ EXAMPLES: dict[str, tuple[str, dict[str, str]]] = {
                                   "layout_before.png": "optimize_layout_before.png",
                                   "layout_after.png": "optimize_layout_after.png",
                                   "history.png": "optimize_history.png"}),
+    "sweep_fead_tolerance": ("sweep scenes/fead_8pulley_friction.toml scenes/sweeps/fead_friction_tolerance.toml",
+                             {"sweep_histograms.png": "sweep_fead_tolerance.png"}),
     "statics_fead": ("statics scenes/fead_8pulley.toml", {"layout.png": "layout_fead_8pulley.png"}),
     "statics_shigley": ("statics scenes/shigley_flat_belt.toml", {}),
     "campbell_fead": ("campbell scenes/fead_8pulley.toml --rpm 600:6000:100",

@@ -245,9 +245,10 @@ def test_a_transient_under_steady_loads_starts_at_its_operating_point_and_report
 FEAD = scene_text("fead_8pulley.toml")
 
 
-def test_sweep_columns_of_the_operating_point(tmp_path):
+def test_sweep_columns_of_the_operating_point(tmp_path, capsys):
     """A sweep of a loaded drive reports the operating point (tensions, drive torque, the arcs'
-    friction and slip margins) case by case, equal to the statics of each case."""
+    friction and slip margins) case by case, equal to the statics of each case; a case that would
+    slip is named in sweep.json and in a warning."""
     sweep = tmp_path / "sweep.toml"
     sweep.write_text('outputs = ["statics"]\n[[grid]]\nparameter = "belt.static_tension"\nvalues = [150.0, 300.0]\n')
     (tmp_path / "fead.toml").write_text(FEAD)
@@ -264,6 +265,9 @@ def test_sweep_columns_of_the_operating_point(tmp_path):
             assert float(row[f"slip_margin_{name}"]) == pytest.approx(v["slip_margin"], rel=1e-6, abs=1e-9)
         assert float(row["min_slip_margin"]) == pytest.approx(min(v["slip_margin"] for v in r.friction.values()))
     assert float(rows[0]["min_slip_margin"]) < 0 < float(rows[1]["min_slip_margin"])  # 150 N slips at the crank
+    report = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert report["slipping"]["min_slip_margin"]["cases"] == [0]
+    assert "WARNING: in 1 of 2 cases the belt would slip at the operating point" in capsys.readouterr().out
 
 
 def test_optimize_with_a_minimum_slip_margin(tmp_path):

@@ -307,3 +307,20 @@ def test_plotting_leaves_matplotlib_as_the_user_set_it(tmp_path):
     )
     subprocess.run([sys.executable, "-c", code, str(tmp_path / "a.png")], check=True, cwd=REPO, timeout=300)
     assert (tmp_path / "a.png").stat().st_size > 100
+
+
+def test_sweep_histograms_lead_with_the_response_and_leave_out_twin_columns():
+    """A tolerance study's histograms: the arm motion and slip margins first, the dynamic tensions of
+    the spans that swing most, then the static tensions without a span equal to an earlier one in
+    every case (the two sides of an idler)."""
+    from beltjax.sweep import figures as sweep_figures
+
+    a = np.array([1.0, 2.0, 3.0])
+    cols = {"tension_a-b_N": 100 * a, "tension_b-c_N": 100 * a, "tension_c-a_N": 100 * a + 50,
+            "tension_p2p_a-b_N": 5 * a, "tension_p2p_b-c_N": 9 * a, "tension_min_a-b_N": a,
+            "min_slip_margin": 0.3 * a, "arm_p2p_deg": 0.1 * a, "dynamic_min_slip_margin": 0.1 - 0.1 * a,
+            "belt_length_m": 1.6 + 0.001 * a}
+    names = sweep_figures._histogram_columns(cols)
+    assert names == ["arm_p2p_deg", "dynamic_min_slip_margin", "min_slip_margin", "tension_p2p_b-c_N",
+                     "tension_p2p_a-b_N", "tension_a-b_N", "tension_c-a_N", "belt_length_m"]
+    assert sweep_figures._column_label("tension_p2p_b-c_N") == "dynamic span tension, peak to peak [N]"

@@ -87,6 +87,10 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
     for s, v in data["failures"].items():
         print(f"  {s}: {v['count']} cases ({v['reason']}); first: {', '.join(str(i) for i in v['cases'][:8])}")
     print(summary_table(cols, data["summary"], labels))
+    for c, v in data["slipping"].items():
+        if v["count"]:
+            print(f"WARNING: in {v['count']} of {n} cases the belt would slip {v['where']} ({c} <= 0); "
+                  f"first: {', '.join(str(i) for i in v['cases'][:8])}")
     if labels:
         print("(f<k>: the nominal scene's k-th mode, followed into every case by its shape; mode_match: a case's "
               "lowest MAC with the nominal's modes)")

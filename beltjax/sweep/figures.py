@@ -35,6 +35,8 @@ def _axis_label(path: str) -> str:
 
 def _column_label(name: str) -> str:
     """The quantity and unit of an output column (``tension_<span>_N`` -> ``span tension [N]``)."""
+    if name.startswith("tension_p2p_"):
+        return "dynamic span tension, peak to peak [N]"
     for prefix, what in (("tension_", "span tension"), ("hub_", "hub force")):
         if name.startswith(prefix) and name.endswith("_N"):
             return f"{what} [N]"
@@ -42,7 +44,9 @@ def _column_label(name: str) -> str:
         return "frequency [Hz]"
     return {"installation_tension_N": "installation tension [N]", "belt_length_m": "belt length [m]",
             "tensioner_angle_deg": "tensioner arm angle [deg]", "spring_moment_Nm": "spring moment [N m]",
-            "campbell_unstable_from_rpm": "unstable from [rpm]"}.get(name, name)
+            "campbell_unstable_from_rpm": "unstable from [rpm]", "arm_p2p_deg": "arm motion, peak to peak [deg]",
+            "dynamic_min_slip_margin": "least slip margin over the cycle [-]",
+            "min_slip_margin": "least slip margin, operating point [-]"}.get(name, name)
 
 def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> list[Path]:
     """Outputs against the first grid parameter (lines: the other grid axes; with random samples
@@ -108,14 +112,39 @@ def plot_grid(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> 
         written.append(path / fname)
     return written
 
+#: most panels of sweep_histograms.png
+MAX_HISTOGRAMS = 15
+
+
+def _histogram_columns(cols) -> list[str]:
+    """What a tolerance study is read for, first: the steady response's arm motion and least slip
+    margin (``response``), the least static slip margin, the dynamic tensions of the four spans
+    that swing most, the static span tensions, the lowest flexible frequencies, belt length and
+    arm angle; a column equal to an
+    earlier one in every case (the spans on either side of an idler) is left out; at most
+    MAX_HISTOGRAMS."""
+    spans = [c for c in cols if c.startswith("tension_") and not c.startswith(("tension_p2p_", "tension_min_"))]
+    p2p = sorted((c for c in cols if c.startswith("tension_p2p_")), key=lambda c: -np.nanmean(np.asarray(cols[c], float))
+                 if np.any(np.isfinite(np.asarray(cols[c], float))) else 0.0)[:4]  # the spans that swing most
+    names = ["arm_p2p_deg", "dynamic_min_slip_margin", "min_slip_margin", *p2p, *spans, *_flexible_columns(cols, 4),
+             "belt_length_m", "tensioner_angle_deg"]
+    out: list[str] = []
+    for c in names:
+        if c not in cols or c in out:
+            continue
+        y = np.asarray(cols[c], float)
+        if np.any(np.isfinite(y)) and not any(np.allclose(y, np.asarray(cols[o], float), rtol=1e-9, atol=0.0,
+                                                          equal_nan=True) for o in out):
+            out.append(c)
+    return out[:MAX_HISTOGRAMS]
+
+
 def plot_histograms(spec: Spec, cols, path: Path, labels: list[str] | None = None) -> Path | None:
-    """Histograms of span tensions and of the lowest flexible frequencies (sweep_histograms.png);
-    x axes: the quantity and its unit, y axes: the number of cases."""
+    """Histograms of what a tolerance study is read for (:func:`_histogram_columns`:
+    sweep_histograms.png); x axes: the quantity and its unit, y axes: the number of cases."""
     from beltjax.plotting import literal, literal_wrapped, save, subplots
 
-    names = [c for c in cols if c.startswith("tension_")] + _flexible_columns(cols, 4)
-    names += [c for c in ("belt_length_m", "tensioner_angle_deg") if c in cols]
-    names = [c for c in names if np.any(np.isfinite(np.asarray(cols[c], float)))]
+    names = _histogram_columns(cols)
     if not names:
         return None
     nc = min(3, len(names))
@@ -136,7 +165,7 @@ def plot_histograms(spec: Spec, cols, path: Path, labels: list[str] | None = Non
     for ax in list(axes.flat)[len(names):]:
         ax.set_visible(False)
     fig.suptitle(literal_wrapped(spec.description or "random sweep", 120), fontsize=9)
-    save(fig, path / "sweep_histograms.png", dpi=100)
+    save(fig, path / "sweep_histograms.png", dpi=100, top_in=0.45)
     return path / "sweep_histograms.png"
 
 def plot_campbell_band(result, path: Path, drive_name: str, orders=(1.0, 2.0, 3.0)) -> Path:

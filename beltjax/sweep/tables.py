@@ -117,9 +117,11 @@ def write_campbell_csv(path: Path, result: Mapping[str, np.ndarray]) -> None:
 
 def summary_table(cols: Mapping[str, np.ndarray], stats: Mapping[str, dict], labels: list[str] | None = None,
                   max_rows: int = 40) -> str:
-    """A readable table of the statistics of the output columns."""
+    """A readable table of the statistics of the output columns (a response's arm motion and least
+    slip margins first: a tolerance study is read for them)."""
+    first = [c for c in ("arm_p2p_deg", "dynamic_min_slip_margin", "min_slip_margin") if c in cols]
     names = []
-    for name in list(cols)[:max_rows]:
+    for name in [*first, *(c for c in cols if c not in first)][:max_rows]:
         if name in ("converged", "stable"):
             continue
         lab = name
@@ -160,8 +162,25 @@ def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: M
         "failed": int(sum(v["count"] for k, v in fails.items() if k != "unstable")),
         "unstable": fails.get("unstable", {}).get("count", 0),
         "failures": fails,
+        "slipping": slipping(cols),
         **(timing or {}),
     }
+
+
+#: the slip-margin columns a sweep warns on: (column, where the margin is taken)
+SLIP_COLUMNS = (("min_slip_margin", "at the operating point"), ("dynamic_min_slip_margin", "during the steady cycle"))
+
+
+def slipping(cols: Mapping[str, np.ndarray]) -> dict:
+    """The cases whose least slip margin is <= 0 (an arc's friction cannot carry its tension ratio:
+    the belt would slip; the model without ``belt_slip`` does not let it), per column of
+    SLIP_COLUMNS present: {column: {"where", "count", "cases"}}."""
+    out = {}
+    for c, where in SLIP_COLUMNS:
+        if c in cols:
+            bad = np.flatnonzero(np.asarray(cols[c], float) <= 0.0)
+            out[c] = {"where": where, "count": int(bad.size), "cases": bad[:20].tolist()}
+    return out
 
 def _columns_meaning(result: Mapping[str, Any]) -> str | None:
     """What the f<k>_hz (and sweep_campbell.csv) columns hold, for sweep.json."""
