@@ -13,7 +13,8 @@ cluster by more than :data:`ABSENT`) or below :data:`ABSENT`, with no cluster ch
 curves than it has modes, and each cluster of several modes has real M-orthonormal shapes (the
 non-gyroscopic eigen-solve, one column per mode; a gyroscopic mode's columns are one complex
 direction, which a simple mode's first column stands for, but several of them are no basis of a
-cluster).  Then the tracker's optimal assignment is exactly "each sure curve to its best
+cluster: a precondition the sweep's eigen-solvers guarantee, which the projections cannot show).
+Then the tracker's optimal assignment is exactly "each sure curve to its best
 cluster": every sure curve has its row's maximum, and moving m of them loses more than m x
 ABSENT while the m columns they free can give the absent curves at most m x ABSENT (one
 augmenting path each); absent curves stay unmatched (below the tracker's MIN_MAC), a cluster's
@@ -65,8 +66,8 @@ def match(F, A, owner, rtol: float = RTOL_REPEATED):
     cols = np.searchsorted(o, np.arange(k)) if np.all(np.diff(o) >= 0) else None
     if cols is None:
         return out_f, out_mac, done
+    ok = np.all(np.isfinite(F), axis=1) & np.all(np.isfinite(A), axis=(1, 2))  # every column finite
     A = A[:, :, cols]  # a mode's first column (a gyroscopic mode's columns are one complex direction)
-    ok = np.all(np.isfinite(F), axis=1) & np.all(np.isfinite(A), axis=(1, 2))
     multi_col = np.bincount(o, minlength=k) > 1  # gyroscopic modes: their columns are no basis of a cluster
     if multi_col.any():  # so a case whose repeated modes have several columns goes to the tracker
         rep = np.abs(np.diff(F, axis=1)) <= rtol * np.maximum(np.abs(F[:, 1:]), np.abs(F[:, :-1]))
@@ -127,14 +128,19 @@ def match(F, A, owner, rtol: float = RTOL_REPEATED):
     return out_f, out_mac, done
 
 
-def _sqrt_diagonal(H):
+def _sqrt_diagonal(H, closed: bool = True):
     """Diagonals (m, a) of the square roots of Hermitian positive semi-definite H (m, a, a): in
     closed form for pairs, sqrt(H) = (H + sqrt(det H) I) / sqrt(tr H + 2 sqrt(det H)) (the pairs
-    of equal spans: numpy's batched eigh of 2x2 matrices took 15 ms per 2,048 cases), else eigh."""
-    if H.shape[1] == 2:
+    of equal spans: numpy's batched eigh of 2x2 matrices took 15 ms per 2,048 cases), else, and
+    where a pair is nearly singular (sqrt(det H) would lose digits), by eigh."""
+    if closed and H.shape[1] == 2:
+        tr = np.real(H[:, 0, 0] + H[:, 1, 1])
         d = np.sqrt(np.clip(np.real(H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] * H[:, 1, 0]), 0.0, None))
-        t = np.sqrt(np.clip(np.real(H[:, 0, 0] + H[:, 1, 1]) + 2.0 * d, 0.0, None))
-        diag = np.real(np.stack([H[:, 0, 0], H[:, 1, 1]], axis=1)) + d[:, None]
-        return diag / np.where(t > 0, t, 1.0)[:, None]
+        t = np.sqrt(np.clip(tr + 2.0 * d, 0.0, None))
+        out = (np.real(np.stack([H[:, 0, 0], H[:, 1, 1]], axis=1)) + d[:, None]) / np.where(t > 0, t, 1.0)[:, None]
+        near = d < 1e-4 * tr
+        if near.any():
+            out[near] = _sqrt_diagonal(H[near], closed=False)
+        return out
     lam, V = np.linalg.eigh(H)
-    return np.einsum("mij,mj,mij->mi", V, np.sqrt(np.clip(lam, 0.0, None)), np.conj(V))
+    return np.real(np.einsum("mij,mj,mij->mi", V, np.sqrt(np.clip(lam, 0.0, None)), np.conj(V)))

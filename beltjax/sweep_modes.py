@@ -6,7 +6,7 @@ turns each chunk's shapes into frequency columns that follow the nominal scene's
 (:func:`references`), at once where :func:`beltjax.mode_batch.match` can (from the projections
 the compiled case made on the device), else by the tracker of :mod:`beltjax.mode_tracking` (the
 shapes of those cases only fetched from the device), and drops the shapes, so memory stays that
-of a chunk.  Column k is the nominal's k-th mode in every case: an
+of a few chunks.  Column k is the nominal's k-th mode in every case: an
 engineer reading sweep.csv finds a mode in one column whatever its rank in a case.
 """
 
@@ -60,7 +60,7 @@ def track_chunk(out: dict[str, np.ndarray], refs: Mapping[str, Any], modes: int)
         if ref is not None:  # every case whose match is certain at once (mode_batch), the rest one by one
             A = mode_batch.projections(np.asarray(W), ref[0].W) if A is None else A
             Ft, mac, done = mode_batch.match(F, A, own)
-        rest = np.flatnonzero(~done)
+        rest = np.flatnonzero(~done & np.all(np.isfinite(F), axis=1))  # failed or unstable cases: nothing to fetch
         W = dict(zip(rest.tolist(), np.asarray(W[rest]))) if rest.size else {}  # from the device: these cases' only
         for i in rest:
             if not (np.all(np.isfinite(F[i])) and np.all(np.isfinite(W[i]))):

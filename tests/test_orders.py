@@ -182,7 +182,9 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
     """response_over_speed's passes (with the compiled batch replaced by a stand-in that records
     its calls): a speed whose shooting found no attracting cycle runs the settling transient for
     settle_s, one still unsettled then runs RETRY_FACTOR x longer; meta says which method gave
-    each speed and keeps the shooting's Floquet multiplier; the statuses follow the last pass."""
+    each speed and keeps the shooting's Floquet multiplier; the statuses follow the last pass; a
+    speed past the critical speed is flagged so, not run again (its transient would only exhaust
+    its steps)."""
     from beltjax.orders import run as orders_run
 
     calls = []
@@ -191,12 +193,13 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
         def fn(scene, x, rpm, settle):
             rpm = np.asarray(rpm)
             calls.append((settings.method, float(np.asarray(settle)[0]), rpm.tolist()))
-            if settings.method == "shooting":  # 600 rpm: no attracting cycle (multiplier 1.2)
-                settling, mult = np.where(rpm == 600.0, np.inf, 1e-9), np.where(rpm == 600.0, 1.2, 0.5)
+            if settings.method == "shooting":  # 600 and 900 rpm: no attracting cycle (multiplier 1.2)
+                settling = np.where(np.isin(rpm, (600.0, 900.0)), np.inf, 1e-9)
+                mult = np.where(np.isin(rpm, (600.0, 900.0)), 1.2, 0.5)
             else:  # the settling transient: 600 rpm settles only after the longer run
                 settling, mult = np.where(float(np.asarray(settle)[0]) > 1.0, 1e-4, 0.5) + 0 * rpm, np.nan + 0 * rpm
             one = np.ones_like(rpm)
-            return {"settling": settling, "solver_ok": one, "converged": one, "supercritical": 0 * one,
+            return {"settling": settling, "solver_ok": one, "converged": one, "supercritical": 1.0 * (rpm == 900.0),
                     "min_span_force_N": 100 * one, "steps": 10 * one, "t_end_s": 0.1 * one,
                     "shooting_iterations": 3 * one, "floquet_multiplier": mult, "arm_angle_deg:p2p": rpm / 1000,
                     "hub_forces_N": np.zeros((len(rpm), 4, 3, 2)), "t_s": np.zeros((len(rpm), 4)),
@@ -204,12 +207,12 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
         return fn
 
     monkeypatch.setattr(orders_run, "_batch", fake_batch)
-    res = orders.response_over_speed(loads_scene(SCENE), [500.0, 600.0, 700.0], settle_s=1.0, chunk=3)
+    res = orders.response_over_speed(loads_scene(SCENE), [500.0, 600.0, 700.0, 900.0], settle_s=1.0, chunk=4)
     assert [c[:2] for c in calls] == [("shooting", 1.0), ("settle", 1.0), ("settle", orders.run.RETRY_FACTOR)]
-    assert calls[1][2] == calls[2][2] == [600.0] * 3  # only the speed given up, padded to the chunk
-    assert res.meta["methods"] == ["shooting", f"settle {orders.run.RETRY_FACTOR:g} s", "shooting"]
-    assert res.meta["floquet_multipliers"] == [0.5, 1.2, 0.5] and res.meta["rerun_speeds"] == 1
-    assert res.status == ["ok", "ok", "ok"] and res.settling[1] == 1e-4
+    assert calls[1][2] == calls[2][2] == [600.0] * 4  # only the speed given up, padded to the chunk
+    assert res.meta["methods"] == ["shooting", f"settle {orders.run.RETRY_FACTOR:g} s", "shooting", "shooting"]
+    assert res.meta["floquet_multipliers"] == [0.5, 1.2, 0.5, 1.2] and res.meta["rerun_speeds"] == 1
+    assert res.status == ["ok", "ok", "ok", "supercritical"] and res.settling[1] == 1e-4
 
 
 def test_an_unknown_start_is_refused():

@@ -274,6 +274,8 @@ CASES = [
          "torque[4]", "no steady state"),
     case("orders-zero-speed", "`orders --rpm 0:1000:500`", "a crank at rest has no excitation cycle",
          lambda d: ["orders", write(d, "scene.toml", FEAD), "--rpm", "0:1000:500"], "rpm", "> 0"),
+    case("orders-speed-beyond-range", "`orders --rpm 800:1e9:1e8`", "a crank speed beyond any belt-driven shaft",
+         lambda d: ["orders", write(d, "scene.toml", FEAD), "--rpm", "800:1e9:1e8"], "rpm[1]", "1e+06"),
     case("orders-order-beyond-samples", "`orders --max-order 100`", "orders the cycle's samples cannot resolve",
          lambda d: ["orders", write(d, "scene.toml", FEAD), "--rpm", "600:800:100", "--max-order", "100"],
          "max_order", "samples"),

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, friction, parameters
+from beltjax import drive, friction, parameters, validate
 from beltjax.errors import BeltjaxError
 from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, METHODS, SOLVERS, STARTS, Settings, cycle_revolutions,
                                    for_scene, steady_case)
@@ -32,7 +32,7 @@ MAX_SPEEDS = 2000
 MIN_SAMPLES, MAX_SAMPLES = 16, 4096
 #: the status of a speed, worst first (span_slack: a span's force on the pulleys, its tension less
 #: rhoA c^2 lam with transport, fell to 0 or below in the cycle: the belt lifts off, no grip)
-STATUS = ("not_converged", "solver_failed", "supercritical", "span_slack", "not_settled", "ok")
+STATUS = ("not_converged", "supercritical", "solver_failed", "span_slack", "not_settled", "ok")  # first cause first
 
 
 class OrdersError(BeltjaxError):
@@ -50,8 +50,12 @@ def check(scene: Scene, rpm) -> None:
     if rpm.size > MAX_SPEEDS:
         raise OrdersError(f"rpm: {rpm.size} speeds, at most {MAX_SPEEDS}", "rpm")
     if not np.all(np.isfinite(rpm) & (rpm > 0)):
-        raise OrdersError(f"rpm: every speed must be finite and > 0 rpm, got {rpm[~(np.isfinite(rpm) & (rpm > 0))][0]!r}",
+        raise OrdersError(f"rpm: every speed must be finite and > 0 rpm, got {float(rpm[~(np.isfinite(rpm) & (rpm > 0))][0]):g}",
                           "rpm")
+    try:
+        validate.speeds(rpm, "rpm", "drive.rpm")  # the accepted range of a drive speed
+    except BeltjaxError as exc:
+        raise OrdersError(str(exc), exc.key) from None
     if drive.spans_of(scene).independent:
         raise OrdersError("model.fidelity: a response over speed runs the rotational model (its adaptive explicit "
                           "steps); give fidelity = \"rotational\", or run the hybrid model's transient with "
@@ -235,7 +239,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     rerun = np.zeros(rpm.size, dtype=bool)
     used = [settings.method if settings.method == "shooting" else f"settle {settle_s:g} s"] * rpm.size
     for time_s, method in passes:
-        retry = np.flatnonzero(~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5))
+        retry = np.flatnonzero(~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5)
+                               & (out["supercritical"] < 0.5))  # past the critical speed: flagged, not settled
         if not retry.size:
             break
         rerun[retry] = True

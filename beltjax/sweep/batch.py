@@ -338,6 +338,8 @@ def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options
             nxt = _launch_chunk(scene, chunks[i + 1], rpm, opts, size, devices, ref) if ahead and i + 1 < len(chunks) else None
             got = _collect_chunk(scene, pending, rpm, opts, size, devices)
             results.append(pool.submit(post, got) if ahead else post(got))
+            if ahead and len(results) > POST_THREADS:  # at most POST_THREADS chunks wait for their tracking
+                results[-POST_THREADS - 1].result()  # (their shapes held on the device; an error raised here)
             pending = nxt
             done += len(next(iter(c.values())))
             if progress is not None:
@@ -453,7 +455,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         return {k: np.concatenate([r[k] for r in results]) for k in results[0]}
 
     out = execute(chunks, opts, size, progress)
-    gave_up = np.flatnonzero(np.isposinf(out.get("response_settling", np.zeros(n))))
+    gave_up = np.flatnonzero(np.isposinf(out.get("response_settling", np.zeros(n)))  # past a critical speed or
+                             & np.isin(out["code"], (_CODE["not_settled"], _CODE["span_slack"])))  # failed: no retry
     if gave_up.size:  # the shooting found no attracting cycle: those cases settle by transient (settle_s)
         settle = dataclasses.replace(opts, response=dataclasses.replace(opts.response, method="settle"))
         size = _chunk_size(gave_up.size, chunk, rpm.size, devices, drive.n_independent(scene))

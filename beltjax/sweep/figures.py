@@ -37,6 +37,8 @@ def _column_label(name: str) -> str:
     """The quantity and unit of an output column (``tension_<span>_N`` -> ``span tension [N]``)."""
     if name.startswith("tension_p2p_"):
         return "dynamic span tension, peak to peak [N]"
+    if name.startswith("tension_min_"):
+        return "least span tension over the cycle [N]"
     for prefix, what in (("tension_", "span tension"), ("hub_", "hub force")):
         if name.startswith(prefix) and name.endswith("_N"):
             return f"{what} [N]"
@@ -120,9 +122,8 @@ def _histogram_columns(cols) -> list[str]:
     """What a tolerance study is read for, first: the steady response's arm motion and least slip
     margin (``response``), the least static slip margin, the dynamic tensions of the four spans
     that swing most, the static span tensions, the lowest flexible frequencies, belt length and
-    arm angle; a column equal to an
-    earlier one in every case (the spans on either side of an idler) is left out; at most
-    MAX_HISTOGRAMS."""
+    arm angle; a span tension equal to an earlier one in every case (the spans on either side of
+    an idler) is left out; at most MAX_HISTOGRAMS."""
     spans = [c for c in cols if c.startswith("tension_") and not c.startswith(("tension_p2p_", "tension_min_"))]
     p2p = sorted((c for c in cols if c.startswith("tension_p2p_")), key=lambda c: -np.nanmean(np.asarray(cols[c], float))
                  if np.any(np.isfinite(np.asarray(cols[c], float))) else 0.0)[:4]  # the spans that swing most
@@ -133,8 +134,9 @@ def _histogram_columns(cols) -> list[str]:
         if c not in cols or c in out:
             continue
         y = np.asarray(cols[c], float)
-        if np.any(np.isfinite(y)) and not any(np.allclose(y, np.asarray(cols[o], float), rtol=1e-9, atol=0.0,
-                                                          equal_nan=True) for o in out):
+        twin = c.startswith("tension_") and any(o.startswith("tension_") and np.allclose(
+            y, np.asarray(cols[o], float), rtol=1e-9, atol=0.0, equal_nan=True) for o in out)
+        if np.any(np.isfinite(y)) and not twin:
             out.append(c)
     return out[:MAX_HISTOGRAMS]
 
