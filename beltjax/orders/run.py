@@ -49,11 +49,11 @@ def check(scene: Scene, rpm) -> None:
         raise OrdersError("rpm: give at least one speed", "rpm")
     if rpm.size > MAX_SPEEDS:
         raise OrdersError(f"rpm: {rpm.size} speeds, at most {MAX_SPEEDS}", "rpm")
-    if not np.all(np.isfinite(rpm) & (rpm > 0)):
-        raise OrdersError(f"rpm: every speed must be finite and > 0 rpm, got {float(rpm[~(np.isfinite(rpm) & (rpm > 0))][0]):g}",
-                          "rpm")
+    if np.any(rpm <= 0):  # (the accepted range of a drive speed admits 0)
+        raise OrdersError(f"rpm: every speed must be > 0 rpm (a crank at rest has no excitation cycle), "
+                          f"got {float(rpm[rpm <= 0][0]):g}", "rpm")
     try:
-        validate.speeds(rpm, "rpm", "drive.rpm")  # the accepted range of a drive speed
+        validate.speeds(rpm, "rpm", "drive.rpm")  # finite, in the accepted range of a drive speed
     except BeltjaxError as exc:
         raise OrdersError(str(exc), exc.key) from None
     if drive.spans_of(scene).independent:

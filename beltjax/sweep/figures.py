@@ -12,7 +12,7 @@ import numpy as np
 from beltjax import drive, drive_modal, parameters
 from beltjax.scene import Scene
 from beltjax.sweep.spec import Spec
-from beltjax.sweep.tables import columns
+from beltjax.sweep.tables import LEAD_COLUMNS, columns
 
 
 def _flexible_columns(cols: Mapping[str, np.ndarray], k: int = 6) -> list[str]:
@@ -127,8 +127,7 @@ def _histogram_columns(cols) -> list[str]:
     spans = [c for c in cols if c.startswith("tension_") and not c.startswith(("tension_p2p_", "tension_min_"))]
     p2p = sorted((c for c in cols if c.startswith("tension_p2p_")), key=lambda c: -np.nanmean(np.asarray(cols[c], float))
                  if np.any(np.isfinite(np.asarray(cols[c], float))) else 0.0)[:4]  # the spans that swing most
-    names = ["arm_p2p_deg", "dynamic_min_slip_margin", "min_slip_margin", *p2p, *spans, *_flexible_columns(cols, 4),
-             "belt_length_m", "tensioner_angle_deg"]
+    names = [*LEAD_COLUMNS, *p2p, *spans, *_flexible_columns(cols, 4), "belt_length_m", "tensioner_angle_deg"]
     out: list[str] = []
     for c in names:
         if c not in cols or c in out:

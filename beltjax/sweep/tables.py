@@ -115,11 +115,15 @@ def write_campbell_csv(path: Path, result: Mapping[str, np.ndarray]) -> None:
             for j, r in enumerate(rpm):
                 w.writerow([i, _fmt(r), *(_fmt(x) for x in F[i, j]), _fmt(ok[i, j])])
 
+#: the columns a tolerance study is read for first (the summary table's and the histograms' lead)
+LEAD_COLUMNS = ("arm_p2p_deg", "dynamic_min_slip_margin", "min_slip_margin")
+
+
 def summary_table(cols: Mapping[str, np.ndarray], stats: Mapping[str, dict], labels: list[str] | None = None,
                   max_rows: int = 40) -> str:
     """A readable table of the statistics of the output columns (a response's arm motion and least
     slip margins first: a tolerance study is read for them)."""
-    first = [c for c in ("arm_p2p_deg", "dynamic_min_slip_margin", "min_slip_margin") if c in cols]
+    first = [c for c in LEAD_COLUMNS if c in cols]
     names = []
     for name in [*first, *(c for c in cols if c not in first)][:max_rows]:
         if name in ("converged", "stable"):
