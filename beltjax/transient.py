@@ -148,10 +148,11 @@ def initial_state(scene: Scene):
 # --------------------------------------------------------------------------- equations
 
 
-def vector_field(scene: Scene, inst):
+def vector_field(scene: Scene, inst, rm=None):
     """f(t, y, args) of y = (q_i, q_i', slip states) for diffrax.ODETerm (m, rad, m/s, rad/s per
-    s; the slip states only with ``belt_slip``: :func:`split_state`)."""
-    rm = drive.reduced_mass(scene, inst)  # the constant span block of M_ii, factored once
+    s; the slip states only with ``belt_slip``: :func:`split_state`); ``rm``: the scene's
+    :func:`beltjax.drive.reduced_mass` where the caller has it."""
+    rm = drive.reduced_mass(scene, inst) if rm is None else rm  # the constant span block of M_ii, factored once
 
     def f(t, y, args):
         del args

@@ -11,7 +11,9 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+import contextlib
 import datetime as _dt
+import fcntl
 import json
 import math
 import platform
@@ -248,6 +250,21 @@ def _jsonable(x):
     if isinstance(x, np.ndarray):
         return _jsonable(x.tolist())
     return x
+
+
+@contextlib.contextmanager
+def exclusive(path: str | None):
+    """Hold an exclusive lock on the file ``path`` (None: no lock) while timing, so that benchmarks
+    run side by side on one machine (their compilations overlapping) time their runs one at a time."""
+    if not path:
+        yield
+        return
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def save_json(name: str, payload: dict) -> Path:

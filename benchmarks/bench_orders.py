@@ -5,7 +5,8 @@ Run: ``python benchmarks/bench_orders.py`` (about 15 min on a 2-core CPU); write
 ``benchmarks/results/orders_<backend>.json``.  ``--speeds N`` (default 100, 600-6000 rpm),
 ``--variants a,b`` (default all), ``--methods shooting,settle`` (default both), ``--chunks 25,100``
 (default: the method's default chunk, and on a CPU also batches of 25 shootings for the drive as
-shipped), ``--name`` (the results file's name).
+shipped), ``--name`` (the results file's name), ``--lock FILE`` (held while timing: benchmarks run
+side by side on one machine time one at a time; their first calls overlap).
 
 Each case: the operating point, then the periodic state by shooting (Newton on the one-cycle map
 with its variational equations, beltjax.orders.shooting; the speeds where it does not converge to
@@ -48,6 +49,7 @@ def main():
     ap.add_argument("--methods", default="shooting,settle")
     ap.add_argument("--chunks", default="")
     ap.add_argument("--name", default="", help="results/<name>.json (default orders_<backend>)")
+    ap.add_argument("--lock", default="", help="a lock file held while timing (benchmarks run side by side)")
     args = ap.parse_args()
     info = _common.machine_info()
     backend = jax.default_backend()
@@ -70,9 +72,10 @@ def main():
             t0 = time.perf_counter()
             orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings)
             first = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            r = orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings)
-            wall = time.perf_counter() - t0
+            with _common.exclusive(args.lock):
+                t0 = time.perf_counter()
+                r = orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings)
+                wall = time.perf_counter() - t0
             got.setdefault(method, r)
             steps = np.asarray(r.meta["steps"])
             flagged = sum(s != "ok" for s in r.status)

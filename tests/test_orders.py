@@ -321,7 +321,8 @@ def test_sweep_response_output_equals_the_response(tmp_path, batched):
 def test_sweep_response_settles_where_the_shooting_gave_up(monkeypatch):
     """beltjax sweep's response output: a case whose shooting found no attracting cycle (here made
     so by a stand-in around the real chunk runner, for the first case) runs again with the
-    settling transient, alone, and gets its result: response_over_speed's with the settling method;
+    settling transient, alone, and gets its result: response_over_speed's with the settling method
+    (the fallback rule and passes are orders.needs_rerun and orders.fallback_passes, one for both);
     one that failed for another cause first (here made supercritical) is not run again."""
     from beltjax import parameters, sweep
     from beltjax.sweep import batch
@@ -330,19 +331,22 @@ def test_sweep_response_settles_where_the_shooting_gave_up(monkeypatch):
 
     def run_local(scene, chunks, rpm, opts, *args):
         got = real(scene, chunks, rpm, opts, *args)
-        passes.append((opts.response.method, sum(len(next(iter(c.values()))) for c in chunks)))
+        passes.append((opts.response.method, opts.settle_s, sum(len(next(iter(c.values()))) for c in chunks)))
         if opts.response.method == "shooting":  # as a case the shooting gave up: not settled
-            codes = iter([sweep.STATUS.index("not_settled"), sweep.STATUS.index("supercritical")])
+            cases = iter([("not_settled", 0.0), ("supercritical", 1.0)])
             for r in got:  # the chunks, in order
                 for i in range(len(r["code"])):
-                    r["response_settling"][i], r["code"][i] = np.inf, next(codes)
+                    status, past = next(cases)
+                    r["response_settling"][i], r["code"][i] = np.inf, sweep.STATUS.index(status)
+                    r["response_rerun"][i] = orders.needs_rerun(dict(settling=np.inf, solver_ok=1.0, converged=1.0,
+                                                                     supercritical=past))
         return got
 
     monkeypatch.setattr(batch, "_run_local", run_local)
     sc = loads_scene(SCENE)
     values = {"tensioner.damping": np.array([0.08, 0.12]), "belt.length": np.array([1.786, 1.789])}  # as above
     res = sweep.evaluate(sc, values, ("statics", "response"), settle_s=1.0)
-    assert passes == [("shooting", 2), ("settle", 1)]
+    assert passes == [("shooting", 1.0, 2), ("settle", 1.0, 1)]  # settled: no longer pass
     case = parameters.set_values(sc, {k: v[0] for k, v in values.items()})
     one = orders.response_over_speed(case, [600.0], settle_s=1.0, settings=orders.Settings(method="settle"))
     assert abs(res["response_arm_p2p_deg"][0] - one.channel("arm_angle_deg", "p2p")[0]) < 1e-9

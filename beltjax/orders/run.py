@@ -39,6 +39,26 @@ class OrdersError(BeltjaxError):
     """A response over speed that cannot be run (one-line message naming the key)."""
 
 
+def needs_rerun(out: dict, settle_tol: float = SETTLE_TOL):
+    """True (numpy or JAX, per speed or case) where the periodic state was not reached: the
+    settling residual (-) above ``settle_tol`` (inf where the shooting found no attracting cycle)
+    while the statics converged, the transient reached its end and the operating point is below
+    the critical speed (past it a speed is flagged, not run again).  ``out``: the arrays
+    ``settling``, ``solver_ok``, ``converged`` and ``supercritical`` of
+    :func:`~beltjax.orders.steady.steady_case`.  The one rule of :func:`response_over_speed` and
+    of a sweep's ``response`` output."""
+    return (~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5)
+            & (out["supercritical"] < 0.5))
+
+
+def fallback_passes(method: str, settle_s: float) -> list[tuple[float, str]]:
+    """The passes, in order, that the speeds (or cases) still :func:`needs_rerun` run again, as
+    (settling time in s, method): after the shooting, the settling transient for ``settle_s``;
+    then (after the settling method too) for :data:`RETRY_FACTOR` times it."""
+    passes = [(settle_s, "settle"), (settle_s * RETRY_FACTOR, "settle")]
+    return passes if method == "shooting" else passes[1:]
+
+
 def check(scene: Scene, rpm) -> None:
     """Refuse (:class:`OrdersError`) what has no periodic steady state in crank angle: a drive
     pulley that is not driven, a run-up, excitation at a fixed frequency (Hz) or a crank trace
@@ -233,14 +253,10 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     out = run(_batch(settings, keys), rpm, settle_s)
     # the speeds that had not settled: a shooting that did not converge to an attracting cycle runs
     # the settling transient, and a transient that had not settled runs again RETRY_FACTOR x longer
-    passes = [(settle_s, "settle"), (settle_s * RETRY_FACTOR, "settle")]
-    if settings.method == "settle":
-        passes = passes[1:]
     rerun = np.zeros(rpm.size, dtype=bool)
     used = [settings.method if settings.method == "shooting" else f"settle {settle_s:g} s"] * rpm.size
-    for time_s, method in passes:
-        retry = np.flatnonzero(~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5)
-                               & (out["supercritical"] < 0.5))  # past the critical speed: flagged, not settled
+    for time_s, method in fallback_passes(settings.method, settle_s):
+        retry = np.flatnonzero(needs_rerun(out, settle_tol))
         if not retry.size:
             break
         rerun[retry] = True

@@ -71,16 +71,19 @@ def change_over_cycle(y_start, y_end, samples, n: int, rtol: float, atol: float)
     ``samples`` (K, 2n), for the n positions and the n speeds apart; the larger of the two (-).  A
     range within :data:`NOISE_RANGE` of the integration's tolerances (rtol, atol) counts as that
     much: the change of a drive that hardly moves is its integration error, not a start-up."""
-    return _relative(y_end - y_start, samples, n, rtol, atol)
+    return relative_change(y_end - y_start, samples, n, rtol, atol, RANGE_FLOOR)
 
 
-def _relative(dy, samples, n: int, rtol: float, atol: float):
-    """max |dy| (2n,) against the range of ``samples`` (K, 2n), positions and speeds apart (-)."""
+def relative_change(dy, samples, n: int, rtol: float = 0.0, atol: float = 0.0, floor: float = 1e-300):
+    """max |dy| ((2n,) or (K, 2n)) against the largest range of ``samples`` (K, 2n) over K, for the
+    n positions and the n speeds apart; the larger of the two (-).  A range below ``floor`` or
+    within :data:`NOISE_RANGE` of the integration's tolerances (rtol, atol) counts as that much.
+    The one measure of the shooting's convergence and of the settling residual."""
     def part(sl):
         x = samples[:, sl]
         span = jnp.max(x.max(axis=0) - x.min(axis=0))
-        floor = jnp.maximum(RANGE_FLOOR, NOISE_RANGE * (atol + rtol * jnp.max(jnp.abs(x))))
-        return jnp.max(jnp.abs(dy[sl])) / jnp.maximum(span, floor)
+        least = jnp.maximum(floor, NOISE_RANGE * (atol + rtol * jnp.max(jnp.abs(x))))
+        return jnp.max(jnp.abs(dy[..., sl])) / jnp.maximum(span, least)
 
     return jnp.maximum(part(slice(0, n)), part(slice(n, 2 * n)))
 
@@ -152,7 +155,7 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         step = jnp.linalg.solve(P - eye, r)
         # damped: a step at most the cycle's own range of motion (far from the cycle, near a
         # resonance, a full step can throw the state where the cycle takes max_steps)
-        step = step / jnp.maximum(1.0, _relative(step[: 2 * n], samples[:, : 2 * n], n, rtol, atol) / MAX_STEP)
+        step = step / jnp.maximum(1.0, relative_change(step[: 2 * n], samples[:, : 2 * n], n, rtol, atol, RANGE_FLOOR) / MAX_STEP)
         finite = good & jnp.all(jnp.isfinite(step)) & jnp.isfinite(res)
         done = (res <= TOLERANCE) | at_noise
         y = jnp.where(done | ~finite, c["y"], c["y"] - step)

@@ -141,12 +141,10 @@ def _settling(y_early, y_late, n: int, dt, creeping=None):
     ``creeping`` (n,) 1.0 / 0.0 (the rotations of free pulleys and rotors with ``belt_slip``) are
     compared after the drift of the late cycle's mean speed over dt: a pulley that creeps turns
     steadily slower than the nominal rolling, and its angle does not repeat."""
-    def part(a, b):
-        span = jnp.max(b.max(axis=0) - b.min(axis=0))
-        return jnp.max(jnp.abs(b - a)) / jnp.maximum(span, 1e-300)
-
-    drift = 0.0 if creeping is None else creeping * dt * jnp.mean(y_late[:-1, n:], axis=0)
-    return jnp.maximum(part(y_early[:, :n] + drift, y_late[:, :n]), part(y_early[:, n:], y_late[:, n:]))
+    dy = y_late - y_early
+    if creeping is not None:
+        dy = dy.at[:, :n].add(-creeping * dt * jnp.mean(y_late[:-1, n:], axis=0))
+    return shooting.relative_change(dy, y_late, n)
 
 
 def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, solved=None) -> dict:
@@ -191,7 +189,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     K = settings.samples
     period = settings.revolutions * 60.0 / jnp.abs(rpm)  # s, one excitation cycle
     phase = period * jnp.arange(K + 1) / K
-    f = vector_field(sc, inst)
+    rm = drive.reduced_mass(sc, inst)  # factored once, for f and for the shooting's f with gradients held
+    f = vector_field(sc, inst, rm)
     if settings.start == "linear":
         y0 = linear_periodic_start(f, y0, period, K)
     term = diffrax.ODETerm(f)
@@ -199,7 +198,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
     solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
     if settings.method == "shooting":  # y0 <- the periodic state, then one cycle from it
-        y_orbit, shot = shooting.periodic_orbit(f, vector_field(*shooting.held((sc, inst))), y0, period, phase[:-1],
+        y_orbit, shot = shooting.periodic_orbit(f, vector_field(*shooting.held((sc, inst, rm))), y0, period, phase[:-1],
                                                 solver, ctrl, settings.max_steps, n)
         y0 = jnp.where(shot["ok"] > 0.5, y_orbit, y0)  # no attracting cycle: a cycle from the start (flagged)
         ts = phase

@@ -117,7 +117,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         if track:
             res["campbell_W"], res["campbell_owner"] = got[2:]
     if "response" in outputs:
-        from beltjax.orders import SETTLE_TOL, for_scene, steady_case
+        from beltjax.orders import SETTLE_TOL, for_scene, needs_rerun, steady_case
         from beltjax.orders.steady import speed_path
 
         if response is None:  # its cycle and top order are read from the scene's values: not under jit
@@ -138,6 +138,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         if "min_slip_margin" in r:
             res["response_min_slip_margin"] = r["min_slip_margin"]
         res["response_settling"] = r["settling"]
+        res["response_rerun"] = needs_rerun(r)  # (the fallback's, popped by evaluate)
         conds += [r["solver_ok"] < 0.5, r["min_span_force_N"] <= 0.0, ~(r["settling"] <= SETTLE_TOL)]
         codes += [_CODE["transient_failed"], _CODE["span_slack"], _CODE["not_settled"]]
     skip = ("frequencies_hz", "campbell_hz", *sweep_modes.SHAPE_KEYS)
@@ -423,7 +424,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
-        from beltjax.orders import OrdersError, check, for_scene
+        from beltjax.orders import OrdersError, check, fallback_passes, for_scene
 
         try:
             check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
@@ -443,9 +444,9 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         run_values = {k: np.where(invalid, v[j], v) for k, v in values.items()}
     run_values = {k: np.broadcast_to(np.asarray(v, float), (n,)) for k, v in full_values(scene, run_values).items()}
     devices = _devices(devices) if backend == "local" else None
-    size = _chunk_size(n, chunk, rpm.size, devices, drive.n_independent(scene))
-    chunks = [{k: v[sl] for k, v in run_values.items()} for sl in _slices(n, size)]
-    def execute(chunks, opts, size, progress):
+    def execute(idx, opts, progress=None):  # the cases idx, in chunks of one compiled size
+        size = _chunk_size(idx.size, chunk, rpm.size, devices, drive.n_independent(scene))
+        chunks = [{k: v[idx][sl] for k, v in run_values.items()} for sl in _slices(idx.size, size)]
         if backend == "local":
             results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post, ref)
         else:
@@ -454,16 +455,17 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
             results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post, ref)
         return {k: np.concatenate([r[k] for r in results]) for k in results[0]}
 
-    out = execute(chunks, opts, size, progress)
-    gave_up = np.flatnonzero(np.isposinf(out.get("response_settling", np.zeros(n)))  # past a critical speed or
-                             & np.isin(out["code"], (_CODE["not_settled"], _CODE["span_slack"])))  # failed: no retry
-    if gave_up.size:  # the shooting found no attracting cycle: those cases settle by transient (settle_s)
-        settle = dataclasses.replace(opts, response=dataclasses.replace(opts.response, method="settle"))
-        size = _chunk_size(gave_up.size, chunk, rpm.size, devices, drive.n_independent(scene))
-        again = execute([{k: v[gave_up][sl] for k, v in run_values.items()} for sl in _slices(gave_up.size, size)],
-                        settle, size, None)
-        for k in out:
-            out[k][gave_up] = again[k]
+    out = execute(np.arange(n), opts, progress)
+    rerun = out.pop("response_rerun", np.zeros(n, dtype=bool))
+    for time_s, method in fallback_passes(opts.response.method, opts.settle_s) if opts.response else []:
+        idx = np.flatnonzero(rerun)  # the cases whose periodic state was not reached run again, as in beltjax orders
+        if idx.size:
+            again = execute(idx, dataclasses.replace(opts, settle_s=time_s, response=dataclasses.replace(
+                opts.response, method=method)))
+            rerun = np.zeros(n, dtype=bool)
+            rerun[idx] = again.pop("response_rerun")
+            for k in out:
+                out[k][idx] = again[k]
     # the checks that need each case's solved installation: the idler where its arm settles, the
     # string-spread limit at the installed tension (validate.solved_status)
     arm = out["tensioner_angle_deg"] if scene.tensioner is not None else None
