@@ -72,6 +72,7 @@ def main():
             t0 = time.perf_counter()
             orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings)
             first = time.perf_counter() - t0
+            print(f"  ({name}, {method}: first call {first:.1f} s)", flush=True)
             with _common.exclusive(args.lock):
                 t0 = time.perf_counter()
                 r = orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings)

@@ -207,12 +207,26 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
         return fn
 
     monkeypatch.setattr(orders_run, "_batch", fake_batch)
+    asked = []  # the fallback passes ask where to run (on an accelerator: a few speeds on the host's CPU)
+    monkeypatch.setattr(orders_run, "fallback_device", lambda n: asked.append(n) or jax.devices("cpu")[0])
     res = orders.response_over_speed(loads_scene(SCENE), [500.0, 600.0, 700.0, 900.0], settle_s=1.0, chunk=4)
+    assert asked == [1, 1]
     assert [c[:2] for c in calls] == [("shooting", 1.0), ("settle", 1.0), ("settle", orders.run.RETRY_FACTOR)]
     assert calls[1][2] == calls[2][2] == [600.0] * 4  # only the speed given up, padded to the chunk
     assert res.meta["methods"] == ["shooting", f"settle {orders.run.RETRY_FACTOR:g} s", "shooting", "shooting"]
     assert res.meta["floquet_multipliers"] == [0.5, 1.2, 0.5, 1.2] and res.meta["rerun_speeds"] == 1
     assert res.status == ["ok", "ok", "ok", "supercritical"] and res.settling[1] == 1e-4
+
+
+def test_fallback_device(monkeypatch):
+    """Where a fallback pass runs: the default device on a CPU backend; on an accelerator the host's
+    CPU for at most HOST_FALLBACK_MAX speeds or cases, the accelerator for more."""
+    from beltjax.orders import run as orders_run
+
+    assert orders.fallback_device(1) is None  # (this machine: a CPU backend)
+    monkeypatch.setattr(orders_run.jax, "default_backend", lambda: "gpu")
+    assert orders.fallback_device(orders_run.HOST_FALLBACK_MAX).platform == "cpu"
+    assert orders.fallback_device(orders_run.HOST_FALLBACK_MAX + 1) is None
 
 
 def test_an_unknown_start_is_refused():
@@ -343,10 +357,12 @@ def test_sweep_response_settles_where_the_shooting_gave_up(monkeypatch):
         return got
 
     monkeypatch.setattr(batch, "_run_local", run_local)
+    host = []  # a fallback of a few cases runs on the host's CPU where the sweep runs on an accelerator
+    monkeypatch.setattr(orders, "fallback_device", lambda n: host.append(n) or jax.devices("cpu")[0])
     sc = loads_scene(SCENE)
     values = {"tensioner.damping": np.array([0.08, 0.12]), "belt.length": np.array([1.786, 1.789])}  # as above
     res = sweep.evaluate(sc, values, ("statics", "response"), settle_s=1.0)
-    assert passes == [("shooting", 1.0, 2), ("settle", 1.0, 1)]  # settled: no longer pass
+    assert passes == [("shooting", 1.0, 2), ("settle", 1.0, 1)] and host == [1]  # settled: no longer pass
     case = parameters.set_values(sc, {k: v[0] for k, v in values.items()})
     one = orders.response_over_speed(case, [600.0], settle_s=1.0, settings=orders.Settings(method="settle"))
     assert abs(res["response_arm_p2p_deg"][0] - one.channel("arm_angle_deg", "p2p")[0]) < 1e-9

@@ -5,6 +5,7 @@ result gathered with a status per speed."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import math
@@ -134,12 +135,31 @@ def _batch(settings: Settings, keys: tuple[str, ...]) -> Callable:
     return jax.jit(jax.vmap(one, in_axes=(None, 0, 0, 0)))
 
 
-def default_chunk(n: int, method: str = "shooting") -> int:
+#: on an accelerator, a fallback pass of at most this many speeds (or a sweep's cases) runs on the
+#: host's CPU: a lock-step batch costs a GPU about 1 ms a step (benchmarks/README.md section 5g),
+#: whatever its size, and a CPU about 50 us a step of one speed, so a few stragglers of thousands of
+#: steps each (the dry-friction tensioner's settling transients) finish sooner there
+HOST_FALLBACK_MAX = 16
+
+
+def fallback_device(n: int):
+    """The device a fallback pass of ``n`` speeds or cases runs on: the host's CPU when the default
+    backend is an accelerator and ``n`` <= :data:`HOST_FALLBACK_MAX`, else None (the default)."""
+    if jax.default_backend() == "cpu" or n > HOST_FALLBACK_MAX:
+        return None
+    try:
+        return jax.devices("cpu")[0]
+    except RuntimeError:  # no CPU backend
+        return None
+
+
+def default_chunk(n: int, method: str = "shooting", platform: str | None = None) -> int:
     """Speeds per compiled batch: all of them on an accelerator; on a CPU one at a time for the
     shooting (a batch runs in lock-step, and its variational equations cost in proportion to the
     batch: on the eight-pulley drive 100 speeds took 10.4 s one by one, 17.4 s in batches of 25,
-    benchmarks/bench_orders.py), up to 32 for the settling transient (the chunks give progress)."""
-    if jax.default_backend() != "cpu":
+    benchmarks/bench_orders.py), up to 32 for the settling transient (the chunks give progress).
+    platform: where it runs (default: JAX's default backend)."""
+    if (platform or jax.default_backend()) != "cpu":
         return max(1, n)
     if method == "shooting":
         return 1
@@ -262,8 +282,10 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         rerun[retry] = True
         for i in retry:
             used[i] = f"{method} {time_s:g} s"
-        again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s,
-                    chunk or default_chunk(retry.size, method))
+        host = fallback_device(retry.size)
+        with jax.default_device(host) if host is not None else contextlib.nullcontext():
+            again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s,
+                        chunk or default_chunk(retry.size, method, host.platform if host is not None else None))
         for k in out:
             if k not in ("shooting_iterations", "floquet_multiplier"):  # (why the shooting gave it up)
                 out[k][retry] = again[k]

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import math
@@ -18,7 +19,6 @@ from beltjax import critical, drive, drive_modal, friction, mode_batch, mode_tra
 from beltjax.scene import Scene
 from beltjax.sweep.spec import CAMPBELL_CHUNK_POINTS, MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
 from beltjax.drive.effects import effects_of
-
 
 @dataclasses.dataclass(frozen=True)
 class _Options:
@@ -223,14 +223,11 @@ ACCEL_MEMORY_FRACTION = 0.25
 ACCEL_MIN_CHUNK, ACCEL_MAX_CHUNK = 64, 4096
 ACCEL_FALLBACK_BYTES = 16 * 2**30  # a device that does not report its memory
 
-
 def _pow2_floor(x: float) -> int:
     return 1 << max(0, int(math.floor(math.log2(max(1.0, x)))))
 
-
 def _pow2_ceil(x: float) -> int:
     return 1 << max(0, int(math.ceil(math.log2(max(1.0, x)))))
-
 
 def _device_bytes(device) -> int:
     """The device's memory in bytes (its allocator's limit), or ACCEL_FALLBACK_BYTES."""
@@ -239,7 +236,6 @@ def _device_bytes(device) -> int:
     except Exception:  # a backend without memory statistics
         stats = {}
     return int(stats.get("bytes_limit") or ACCEL_FALLBACK_BYTES)
-
 
 def default_chunk(devices: tuple | None = None, n_coordinates: int | None = None) -> int:
     """Default cases per compiled batch: 1 per CPU device; on accelerators, from the device's
@@ -291,7 +287,6 @@ def _launch_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarra
     keys = tuple(sorted(values))
     return keys, values, ref, _batch_fn(opts, devices, keys)(scene, _matrix(values, keys, size), rpm, ref)
 
-
 def _collect_chunk(scene: Scene, launched, rpm: np.ndarray, opts: _Options, size: int,
                    devices: tuple | None) -> dict[str, np.ndarray]:
     """The outputs of a launched chunk as numpy (the shapes of sweep_modes.DEVICE_KEYS stay on the
@@ -311,7 +306,6 @@ def _collect_chunk(scene: Scene, launched, rpm: np.ndarray, opts: _Options, size
             else:
                 out[k][again] = np.asarray(redo[k])[: again.size]
     return out
-
 
 def _run_chunk(scene: Scene, values: Mapping[str, np.ndarray], rpm: np.ndarray, opts: _Options,
                size: int, devices: tuple | None, ref=None) -> dict[str, np.ndarray]:
@@ -346,7 +340,6 @@ def _run_local(scene: Scene, chunks: list[dict], rpm: np.ndarray, opts: _Options
             if progress is not None:
                 progress(done, n)
         return [r.result() for r in results] if ahead else results
-
 
 #: threads that post-process (track) an accelerator's chunks while the next ones compute
 POST_THREADS = 4
@@ -424,7 +417,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
-        from beltjax.orders import OrdersError, check, fallback_passes, for_scene
+        from beltjax.orders import OrdersError, check, fallback_device, fallback_passes, for_scene
 
         try:
             check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
@@ -444,11 +437,11 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         run_values = {k: np.where(invalid, v[j], v) for k, v in values.items()}
     run_values = {k: np.broadcast_to(np.asarray(v, float), (n,)) for k, v in full_values(scene, run_values).items()}
     devices = _devices(devices) if backend == "local" else None
-    def execute(idx, opts, progress=None):  # the cases idx, in chunks of one compiled size
-        size = _chunk_size(idx.size, chunk, rpm.size, devices, drive.n_independent(scene))
+    def execute(idx, opts, progress=None, devs=devices):  # the cases idx, in chunks of one compiled size
+        size = _chunk_size(idx.size, chunk, rpm.size, devs, drive.n_independent(scene))
         chunks = [{k: v[idx][sl] for k, v in run_values.items()} for sl in _slices(idx.size, size)]
         if backend == "local":
-            results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post, ref)
+            results = _run_local(scene, chunks, rpm, opts, size, devs, progress, post, ref)
         else:
             from beltjax.sweep.dask_backend import _run_dask  # imports batch: not at the top
 
@@ -459,13 +452,16 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     rerun = out.pop("response_rerun", np.zeros(n, dtype=bool))
     for time_s, method in fallback_passes(opts.response.method, opts.settle_s) if opts.response else []:
         idx = np.flatnonzero(rerun)  # the cases whose periodic state was not reached run again, as in beltjax orders
-        if idx.size:
+        if not idx.size:
+            break
+        host = fallback_device(idx.size) if backend == "local" else None  # a few: on the host's CPU
+        with jax.default_device(host) if host is not None else contextlib.nullcontext():
             again = execute(idx, dataclasses.replace(opts, settle_s=time_s, response=dataclasses.replace(
-                opts.response, method=method)))
-            rerun = np.zeros(n, dtype=bool)
-            rerun[idx] = again.pop("response_rerun")
-            for k in out:
-                out[k][idx] = again[k]
+                opts.response, method=method)), devs=(host,) if host is not None else devices)
+        rerun = np.zeros(n, dtype=bool)
+        rerun[idx] = again.pop("response_rerun")
+        for k in out:
+            out[k][idx] = again[k]
     # the checks that need each case's solved installation: the idler where its arm settles, the
     # string-spread limit at the installed tension (validate.solved_status)
     arm = out["tensioner_angle_deg"] if scene.tensioner is not None else None
