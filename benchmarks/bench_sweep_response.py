@@ -1,7 +1,7 @@
 """A tolerance study of the dynamic response (``beltjax sweep`` with the ``response`` output): what
 the batched shooting of many parameter variants costs, on a CPU or a GPU.
 
-Run: ``python benchmarks/bench_sweep_response.py`` (about 6 min on a 2-core CPU: 16 cases) or, on
+Run: ``python benchmarks/bench_sweep_response.py`` (about 2 min on a 2-core CPU: 16 cases) or, on
 a GPU, ``--cases 1024``; writes ``benchmarks/results/<name>.json`` (default
 ``sweep_response_<backend>``).
 
