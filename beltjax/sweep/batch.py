@@ -437,11 +437,11 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         run_values = {k: np.where(invalid, v[j], v) for k, v in values.items()}
     run_values = {k: np.broadcast_to(np.asarray(v, float), (n,)) for k, v in full_values(scene, run_values).items()}
     devices = _devices(devices) if backend == "local" else None
-    def execute(idx, opts, progress=None, devs=devices):  # the cases idx, in chunks of one compiled size
-        size = _chunk_size(idx.size, chunk, rpm.size, devs, drive.n_independent(scene))
+    def execute(idx, opts, progress=None):  # the cases idx, in chunks of one compiled size
+        size = _chunk_size(idx.size, chunk, rpm.size, devices, drive.n_independent(scene))
         chunks = [{k: v[idx][sl] for k, v in run_values.items()} for sl in _slices(idx.size, size)]
         if backend == "local":
-            results = _run_local(scene, chunks, rpm, opts, size, devs, progress, post, ref)
+            results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post, ref)
         else:
             from beltjax.sweep.dask_backend import _run_dask  # imports batch: not at the top
 
@@ -454,10 +454,10 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         idx = np.flatnonzero(rerun)  # the cases whose periodic state was not reached run again, as in beltjax orders
         if not idx.size:
             break
-        host = fallback_device(idx.size) if backend == "local" else None  # a few: on the host's CPU
-        with jax.default_device(host) if host is not None else contextlib.nullcontext():
+        host = fallback_device(idx.size) if backend == "local" and devices is None else None  # a few: on the
+        with jax.default_device(host) if host is not None else contextlib.nullcontext():  # host's CPU, one batch
             again = execute(idx, dataclasses.replace(opts, settle_s=time_s, response=dataclasses.replace(
-                opts.response, method=method)), devs=(host,) if host is not None else devices)
+                opts.response, method=method)))
         rerun = np.zeros(n, dtype=bool)
         rerun[idx] = again.pop("response_rerun")
         for k in out:
