@@ -57,7 +57,8 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     :func:`beltjax.orders.for_scene`)
     (:func:`beltjax.orders.steady_case`): response_arm_p2p_deg, response_span_min_N,
     response_span_max_N, response_span_p2p_N (per span), response_hub_max_N (per bearing),
-    response_min_slip_margin (per arc with a coefficient), response_settling.
+    response_min_slip_margin (per arc with a coefficient), response_settling, response_rerun
+    (bool: :func:`beltjax.orders.needs_rerun`, which :func:`evaluate` runs again and removes).
     """
     sc = parameters.set_values(scene, values)
     inst = statics.install(sc)
