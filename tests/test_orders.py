@@ -207,12 +207,14 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
         return fn
 
     monkeypatch.setattr(orders_run, "_batch", fake_batch)
-    asked = []  # the fallback passes ask where to run (on an accelerator: a few speeds on the host's CPU)
-    monkeypatch.setattr(orders_run, "fallback_device", lambda n: asked.append(n) or jax.devices("cpu")[0])
+    asked = []  # the fallback passes ask where to run (on an accelerator: a few speeds on the host's CPU);
+    # here the first pass runs where the batch runs (padded to the chunk), the second on the host (one batch)
+    monkeypatch.setattr(orders_run, "fallback_device", lambda n: None if asked.append(n) or len(asked) == 1
+                        else jax.devices("cpu")[0])
     res = orders.response_over_speed(loads_scene(SCENE), [500.0, 600.0, 700.0, 900.0], settle_s=1.0, chunk=4)
     assert asked == [1, 1]
     assert [c[:2] for c in calls] == [("shooting", 1.0), ("settle", 1.0), ("settle", orders.run.RETRY_FACTOR)]
-    assert calls[1][2] == calls[2][2] == [600.0] * 4  # only the speed given up, padded to the chunk
+    assert calls[1][2] == [600.0] * 4 and calls[2][2] == [600.0]  # only the speed given up (padded to the chunk)
     assert res.meta["methods"] == ["shooting", f"settle {orders.run.RETRY_FACTOR:g} s", "shooting", "shooting"]
     assert res.meta["floquet_multipliers"] == [0.5, 1.2, 0.5, 1.2] and res.meta["rerun_speeds"] == 1
     assert res.status == ["ok", "ok", "ok", "supercritical"] and res.settling[1] == 1e-4
@@ -223,7 +225,8 @@ def test_fallback_device(monkeypatch):
     CPU for at most HOST_FALLBACK_MAX speeds or cases, the accelerator for more."""
     from beltjax.orders import run as orders_run
 
-    assert orders.fallback_device(1) is None  # (this machine: a CPU backend)
+    monkeypatch.setattr(orders_run.jax, "default_backend", lambda: "cpu")
+    assert orders.fallback_device(1) is None
     monkeypatch.setattr(orders_run.jax, "default_backend", lambda: "gpu")
     assert orders.fallback_device(orders_run.HOST_FALLBACK_MAX).platform == "cpu"
     assert orders.fallback_device(orders_run.HOST_FALLBACK_MAX + 1) is None

@@ -155,7 +155,8 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         step = jnp.linalg.solve(P - eye, r)
         # damped: a step at most the cycle's own range of motion (far from the cycle, near a
         # resonance, a full step can throw the state where the cycle takes max_steps)
-        step = step / jnp.maximum(1.0, relative_change(step[: 2 * n], samples[:, : 2 * n], n, rtol, atol, RANGE_FLOOR) / MAX_STEP)
+        reach = relative_change(step[: 2 * n], samples[:, : 2 * n], n, rtol, atol, RANGE_FLOOR)
+        step = step / jnp.maximum(1.0, reach / MAX_STEP)
         finite = good & jnp.all(jnp.isfinite(step)) & jnp.isfinite(res)
         done = (res <= TOLERANCE) | at_noise
         y = jnp.where(done | ~finite, c["y"], c["y"] - step)

@@ -358,8 +358,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     backend: "local" (this process) or "dask" (chunks as tasks on a dask.distributed
     cluster; ``dask`` is a Client, a scheduler address, or None for the
     ``BELTJAX_DASK_SCHEDULER`` address or a LocalCluster of one process per core); settle_s: the
-    response output's transient time before its recorded cycle (s) where the shooting finds no
-    attracting cycle (those cases run again with the settling transient) or the scene settles;
+    response's transient (s) where the shooting finds no attracting cycle or the scene settles (the passes
+    of orders.fallback_passes, each compiled; beside an accelerator a few on its host: fallback_device);
     devices (local backend): shard each chunk over these JAX devices (``shard_map`` on
     the case axis; the chunk is a multiple of their number); "auto" uses every local
     accelerator when there are several (see :func:`_devices` for CPU devices), None none;
@@ -438,8 +438,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         run_values = {k: np.where(invalid, v[j], v) for k, v in values.items()}
     run_values = {k: np.broadcast_to(np.asarray(v, float), (n,)) for k, v in full_values(scene, run_values).items()}
     devices = _devices(devices) if backend == "local" else None
-    def execute(idx, opts, progress=None):  # the cases idx, in chunks of one compiled size
-        size = _chunk_size(idx.size, chunk, rpm.size, devices, drive.n_independent(scene))
+    def execute(idx, opts, progress=None, whole=False):  # the cases idx, in chunks of one size (whole: one chunk)
+        size = idx.size if whole else _chunk_size(idx.size, chunk, rpm.size, devices, drive.n_independent(scene))
         chunks = [{k: v[idx][sl] for k, v in run_values.items()} for sl in _slices(idx.size, size)]
         if backend == "local":
             results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post, ref)
@@ -450,7 +450,10 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         return {k: np.concatenate([r[k] for r in results]) for k in results[0]}
 
     out = execute(np.arange(n), opts, progress)
-    rerun = out.pop("response_rerun", np.zeros(n, dtype=bool))
+    def unsettled(o):  # the response not reached and no earlier fault (an invalid case ran a valid one)
+        return o.pop("response_rerun", False) & np.isin(o["code"], (_CODE["span_slack"], _CODE["not_settled"]))
+
+    rerun = unsettled(out) & ~invalid
     for time_s, method in fallback_passes(opts.response.method, opts.settle_s) if opts.response else []:
         idx = np.flatnonzero(rerun)  # the cases whose periodic state was not reached run again, as in beltjax orders
         if not idx.size:
@@ -458,9 +461,9 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         host = fallback_device(idx.size) if backend == "local" and devices is None else None  # a few: on the
         with jax.default_device(host) if host is not None else contextlib.nullcontext():  # host's CPU, one batch
             again = execute(idx, dataclasses.replace(opts, settle_s=time_s, response=dataclasses.replace(
-                opts.response, method=method)))
+                opts.response, method=method)), whole=host is not None)
         rerun = np.zeros(n, dtype=bool)
-        rerun[idx] = again.pop("response_rerun")
+        rerun[idx] = unsettled(again)
         for k in out:
             out[k][idx] = again[k]
     # the checks that need each case's solved installation: the idler where its arm settles, the
