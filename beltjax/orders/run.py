@@ -157,8 +157,7 @@ def default_chunk(n: int, method: str = "shooting") -> int:
     """Speeds per compiled batch: all of them on an accelerator; on a CPU one at a time for the
     shooting (a batch runs in lock-step, and its variational equations cost in proportion to the
     batch: on the eight-pulley drive 100 speeds took 10.4 s one by one, 17.4 s in batches of 25,
-    benchmarks/bench_orders.py), up to 32 for the settling transient (the chunks give progress);
-    a fallback pass on the host's CPU (:func:`fallback_device`) runs as one batch."""
+    benchmarks/bench_orders.py), up to 32 for the settling transient (the chunks give progress)."""
     if jax.default_backend() != "cpu":
         return max(1, n)
     if method == "shooting":
@@ -284,9 +283,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
             used[i] = f"{method} {time_s:g} s"
         host = fallback_device(retry.size)
         with jax.default_device(host) if host is not None else contextlib.nullcontext():
-            size_again = default_chunk(retry.size, method) if host is None else retry.size  # (host: one batch)
             again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s,
-                        size_again if host is not None or not chunk else chunk)
+                        retry.size if host is not None else chunk or default_chunk(retry.size, method))  # host: 1 batch
         for k in out:
             if k not in ("shooting_iterations", "floquet_multiplier"):  # (why the shooting gave it up)
                 out[k][retry] = again[k]
