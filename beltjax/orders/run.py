@@ -242,7 +242,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     for k, val in values.items():
         parameters.check(scene, k)
         parameters.check_value(k, val)
-    settings = for_scene(scene, settings)
+    settings = dataclasses.replace(for_scene(scene, settings), gradients=False)  # numbers out, no derivative
     if not MIN_SAMPLES <= settings.samples <= MAX_SAMPLES:
         raise OrdersError(f"samples: {settings.samples} samples per cycle; give {MIN_SAMPLES} to {MAX_SAMPLES}", "samples")
     need = 2 * settings.max_order * settings.revolutions + 2

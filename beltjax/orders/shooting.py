@@ -27,6 +27,18 @@ Gradients: the Newton loop runs on stopped gradients; the implicit function theo
 through one more Newton step, y* = y - (P - I)^-1 (Phi(y; p) - y), with the map Phi integrated
 differentiably and P held: its value is a further correction (the residual squared), its
 derivative in any parameter p is -(P - I)^-1 dPhi/dp, the fixed point's.
+
+Without gradients (``gradients=False``: a response over speed, a sweep) that cycle is not run and
+the last Newton step is taken, and the loop also stops on Newton's prediction: once the iterate is
+in the quadratic range (residual at most :data:`PREDICT_RESIDUAL`) a step of reach r leaves a
+residual of about C r^2 (C = 0.14-0.56 on the eight-pulley drive with the friction tensioner,
+600-6000 rpm), so a step of reach at most :data:`PREDICT_REACH` is taken without the cycle that
+would confirm it (a cycle with the variational equations, about 2.5 plain ones).  The caller's
+recorded cycle confirms it instead: its change over the cycle must be within
+:data:`PREDICT_CHECK` (:func:`beltjax.orders.steady.steady_case`, else the case settles).  On that
+drive 100 speeds took 29 % less (benchmarks/README §5g).  The values agree with the converged
+loop's to the tolerance; their gradients would not (P is the last iterate's), hence the flag, and
+differentiating a ``gradients=False`` orbit raises (:func:`refuse_tangents`).
 """
 
 from __future__ import annotations
@@ -64,6 +76,12 @@ MAX_STEP = 1.0
 MAX_CYCLE_STEPS = 50_000
 #: squarings of P in the spectral-radius estimate (P^(2^SQUARINGS))
 SQUARINGS = 20
+#: without gradients: a Newton step of at most this reach (-) from an iterate whose residual is at
+#: most :data:`PREDICT_RESIDUAL` (-) ends the loop (module docstring; C r^2 <= 0.56e-6 seen)
+PREDICT_REACH = 1e-3
+PREDICT_RESIDUAL = 1e-2
+#: ... and the recorded cycle from it must change by at most this (-), 100x :data:`TOLERANCE`
+PREDICT_CHECK = 1e-4
 
 
 def change_over_cycle(y_start, y_end, samples, n: int, rtol: float, atol: float):
@@ -108,7 +126,24 @@ def held(tree):
     return jax.tree_util.tree_map(lambda x: jax.lax.stop_gradient(x) if isinstance(x, jax.Array) else x, tree)
 
 
-def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int, n: int):
+@jax.custom_jvp
+def _no_tangent(x):
+    return x
+
+
+@_no_tangent.defjvp
+def _no_tangent_jvp(primals, tangents):
+    raise ValueError("gradients: this periodic orbit was found with gradients=False (orders.Settings), which takes "
+                     "Newton's last step without the implicit-function cycle; differentiate with gradients=True")
+
+
+def refuse_tangents(tree):
+    """``tree`` unchanged; differentiating through any of its array leaves raises (a shooting with
+    ``gradients=False``, whose derivative would miss the fixed point's)."""
+    return jax.tree_util.tree_map(lambda x: _no_tangent(x) if isinstance(x, jax.Array) else x, tree)
+
+
+def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int, n: int, gradients: bool = True):
     """The state y(0) of the periodic solution of y' = f(t, y, None) with period ``period`` (s),
     by Newton's method from ``y0`` (the state's units); ``ts`` (K,) the cycle's sample times (s,
     for the convergence test's ranges), ``solver``, ``controller`` (diffrax; the controller's step
@@ -120,8 +155,9 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
     Returns (y* (N,), info) with info: ``iterations``, ``residual`` (:func:`change_over_cycle` of
     the last iterate), ``multiplier`` (largest Floquet multiplier, -), ``steps`` (all cycles),
     ``ok`` (1.0 / 0.0: converged, to :data:`TOLERANCE` or to the integration's own error
-    (:data:`NOISE_STOP`), finite and attracting) as floats.  Differentiable in the parameters
-    ``f`` closes over (module docstring)."""
+    (:data:`NOISE_STOP`), finite and attracting), ``predicted`` (1.0 where the loop stopped on
+    Newton's prediction: the caller checks the next cycle against :data:`PREDICT_CHECK`) as floats.
+    Differentiable in the parameters ``f`` closes over if ``gradients`` (static; module docstring)."""
     N = y0.shape[0]
     max_steps = min(max_steps, MAX_CYCLE_STEPS)
     T, t_samples = jax.lax.stop_gradient(period), jax.lax.stop_gradient(ts)
@@ -159,13 +195,25 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         step = step / jnp.maximum(1.0, reach / MAX_STEP)
         finite = good & jnp.all(jnp.isfinite(step)) & jnp.isfinite(res)
         done = (res <= TOLERANCE) | at_noise
-        y = jnp.where(done | ~finite, c["y"], c["y"] - step)
+        predicted = jnp.asarray(False)
+        if gradients:  # the implicit function's cycle below starts where the residual was measured
+            y = jnp.where(done | ~finite, c["y"], c["y"] - step)
+        else:  # the last step taken; stopped on the prediction too (module docstring)
+            predicted = ~done & (res <= PREDICT_RESIDUAL) & (reach <= PREDICT_REACH)
+            done = done | predicted
+            y = jnp.where(finite, c["y"] - step, c["y"])
         return dict(y=y, k=c["k"] + 1, residual=jnp.where(finite, res, jnp.inf), P=jnp.where(finite, P, c["P"]),
-                    steps=c["steps"] + steps, finite=finite, done=done & finite)
+                    steps=c["steps"] + steps, finite=finite, done=done & finite, predicted=predicted & finite)
 
     init = dict(y=jax.lax.stop_gradient(y0), k=jnp.asarray(0), residual=jnp.asarray(jnp.inf, y0.dtype), P=eye,
-                steps=jnp.asarray(0), finite=jnp.asarray(True), done=jnp.asarray(False))
+                steps=jnp.asarray(0), finite=jnp.asarray(True), done=jnp.asarray(False), predicted=jnp.asarray(False))
     c = jax.lax.while_loop(cond, body, init)
+    mult = spectral_radius(c["P"])
+    if not gradients:
+        ok = c["done"] & (mult < 1.0) & jnp.all(jnp.isfinite(c["y"]))
+        info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult,
+                    steps=c["steps"].astype(y0.dtype), ok=ok.astype(y0.dtype), predicted=c["predicted"].astype(y0.dtype))
+        return c["y"], info
     # the implicit function theorem's step (module docstring): Phi integrated with gradients, P held
     plain = diffrax.diffeqsolve(diffrax.ODETerm(f), solver, t0=0.0, t1=period, dt0=period / 64, y0=c["y"],
                                 stepsize_controller=controller, max_steps=max_steps, throw=False)
@@ -173,8 +221,8 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
     usable = c["done"] & jnp.all(jnp.isfinite(rhs))  # else no step (and no NaN in the gradient)
     correction = jnp.linalg.solve(jnp.where(usable, c["P"] - eye, eye), jnp.where(usable, rhs, 0.0))
     y_star = c["y"] - correction
-    mult = spectral_radius(c["P"])
     ok = usable & (mult < 1.0) & jnp.all(jnp.isfinite(y_star))
     info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult,
-                steps=(c["steps"] + plain.stats["num_steps"]).astype(y0.dtype), ok=ok.astype(y0.dtype))
+                steps=(c["steps"] + plain.stats["num_steps"]).astype(y0.dtype), ok=ok.astype(y0.dtype),
+                predicted=jnp.zeros((), y0.dtype))
     return y_star, info

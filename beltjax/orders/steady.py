@@ -74,7 +74,10 @@ class Settings:
     the operating point at rest in the rotating frame, as :func:`beltjax.transient.simulate`);
     method: one of :data:`METHODS`, ``"shooting"`` (the default: Newton's method on the one-cycle
     map from that start, :mod:`beltjax.orders.shooting`; :func:`for_scene` makes it ``"settle"``
-    for a drive whose state drifts) or ``"settle"`` (a transient of at least ``settle_s``)."""
+    for a drive whose state drifts) or ``"settle"`` (a transient of at least ``settle_s``);
+    gradients: False where no derivative is taken (a response over speed, a sweep): the shooting
+    saves its implicit-function cycle and may stop on Newton's prediction
+    (:func:`beltjax.orders.shooting.periodic_orbit`); differentiating such a case raises."""
 
     samples: int = 128
     max_order: float = 8.0
@@ -86,6 +89,7 @@ class Settings:
     top_order: float = 8.0
     start: str = "linear"
     method: str = "shooting"
+    gradients: bool = True
 
     @property
     def harmonics(self) -> int:
@@ -190,6 +194,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     period = settings.revolutions * 60.0 / jnp.abs(rpm)  # s, one excitation cycle
     phase = period * jnp.arange(K + 1) / K
     rm = drive.reduced_mass(sc, inst)  # factored once, for f and for the shooting's f with gradients held
+    if settings.method == "shooting" and not settings.gradients:
+        sc, inst, rm = shooting.refuse_tangents((sc, inst, rm))
     f = vector_field(sc, inst, rm)
     if settings.start == "linear":
         y0 = linear_periodic_start(f, y0, period, K)
@@ -199,7 +205,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
     if settings.method == "shooting":  # y0 <- the periodic state, then one cycle from it
         y_orbit, shot = shooting.periodic_orbit(f, vector_field(*shooting.held((sc, inst, rm))), y0, period, phase[:-1],
-                                                solver, ctrl, settings.max_steps, n)
+                                                solver, ctrl, settings.max_steps, n, settings.gradients)
         y0 = jnp.where(shot["ok"] > 0.5, y_orbit, y0)  # no attracting cycle: a cycle from the start (flagged)
         ts = phase
     else:  # a transient of at least settle_s, two cycles recorded
@@ -235,7 +241,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     if settings.method == "shooting":  # the recorded cycle's own change, if the shooting found an attracting cycle
         change = shooting.change_over_cycle(late[0, : 2 * n], late[-1, : 2 * n], late[:-1, : 2 * n], n,
                                             settings.rtol, settings.atol)
-        out["settling"] = jnp.where(shot["ok"] > 0.5, change, jnp.inf)
+        confirmed = (shot["predicted"] < 0.5) | (change <= shooting.PREDICT_CHECK)  # Newton's prediction held
+        out["settling"] = jnp.where((shot["ok"] > 0.5) & confirmed, change, jnp.inf)
         out["shooting_iterations"], out["floquet_multiplier"] = shot["iterations"], shot["multiplier"]
         steps = steps + shot["steps"]
     else:

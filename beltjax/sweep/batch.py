@@ -418,14 +418,14 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         refs = sweep_modes.references(scene, outputs, modes, rpm) if isinstance(reference, str) else dict(reference)
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
-        from beltjax.orders import OrdersError, check, fallback_device, fallback_passes, for_scene
+        from beltjax.orders import OrdersError, Settings, check, fallback_device, fallback_passes, for_scene
 
         try:
             check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
         except OrdersError as exc:
             raise SweepError(str(exc), "outputs") from None
     opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track,
-                    settle_s=float(settle_s), response=for_scene(scene) if "response" in outputs else None)
+                    settle_s=float(settle_s), response=for_scene(scene, Settings(gradients=False)) if "response" in outputs else None)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
     ref = np.asarray(refs["modal"][0].W) if track and refs.get("modal") else None  # projected on the device,
     ref = ref.real if ref is not None and not np.any(ref.imag) else ref  # in real arithmetic where it can be
