@@ -198,10 +198,11 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         predicted = jnp.asarray(False)
         if gradients:  # the implicit function's cycle below starts where the residual was measured
             y = jnp.where(done | ~finite, c["y"], c["y"] - step)
-        else:  # the last step taken; stopped on the prediction too (module docstring)
+        else:  # the last step taken if small (at the noise an ill-conditioned P - I may make it large, and
+            # of no use); stopped on the prediction too (module docstring)
             predicted = ~done & (res <= PREDICT_RESIDUAL) & (reach <= PREDICT_REACH)
+            y = jnp.where(finite & (~done | (reach <= PREDICT_REACH)), c["y"] - step, c["y"])
             done = done | predicted
-            y = jnp.where(finite, c["y"] - step, c["y"])
         return dict(y=y, k=c["k"] + 1, residual=jnp.where(finite, res, jnp.inf), P=jnp.where(finite, P, c["P"]),
                     steps=c["steps"] + steps, finite=finite, done=done & finite, predicted=predicted & finite)
 
