@@ -187,8 +187,8 @@ def test_shooting_finds_the_periodic_state_and_its_stability(zeta):
 def test_shooting_without_gradients_stops_on_newtons_prediction():
     """A hardening Duffing oscillator forced near its resonance (Newton needs several iterations):
     with gradients=False the loop stops on the prediction (a small step from the quadratic range),
-    one variational cycle fewer than the converged loop, and the cycle from its state repeats within
-    PREDICT_CHECK, as the caller checks, and agrees with the converged loop's state to 1e-6 of the
+    with fewer variational cycles than the converged loop (one here), and the cycle from its state
+    repeats within PREDICT_CHECK (1 - mu), as the caller checks, and agrees with the converged loop's state to 1e-6 of the
     motion; differentiating a response case run that way raises, naming the setting."""
     import diffrax
 
@@ -211,14 +211,14 @@ def test_shooting_without_gradients_stops_on_newtons_prediction():
 
     (y_ref, full), (y, lean) = jax.jit(lambda: (orbit(True), orbit(False)))()
     assert float(full["ok"]) == float(lean["ok"]) == 1.0 and float(full["predicted"]) == 0.0
-    assert float(lean["predicted"]) == 1.0 and float(lean["iterations"]) == float(full["iterations"]) - 1
+    assert float(lean["predicted"]) == 1.0 and float(lean["iterations"]) < float(full["iterations"])
     sol = diffrax.diffeqsolve(diffrax.ODETerm(field(1000.0)), diffrax.Dopri8(), 0.0, period, period / 64, y,
                               saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl)
     cycle = np.asarray(sol.ys)
     end = diffrax.diffeqsolve(diffrax.ODETerm(field(1000.0)), diffrax.Dopri8(), 0.0, period, period / 64, y,
                               stepsize_controller=ctrl).ys[-1]
     change = float(shooting.change_over_cycle(y, end, cycle, 1, 1e-10, 1e-12))
-    assert change <= shooting.PREDICT_CHECK
+    assert change <= shooting.PREDICT_CHECK * (1 - float(lean["multiplier"]))
     motion = np.ptp(cycle, axis=0)
     assert np.all(np.abs(np.asarray(y) - np.asarray(y_ref)) <= 1e-6 * motion)
 

@@ -118,8 +118,8 @@ def check(scene: Scene, rpm) -> None:
 
 def over_speed(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -> dict:
     """:func:`~beltjax.orders.steady.steady_case` at every speed of ``rpm`` (S,) (rev/min), as one
-    pure, vmapped function of the parameter ``values`` {path: value}: differentiable (``jax.grad``)
-    for losses over speed, e.g. the largest arm motion over an idle band.  ``settings.revolutions``
+    pure, vmapped function of the parameter ``values`` {path: value}: differentiable (``jax.grad``;
+    with ``settings.gradients``, the default, else differentiating raises) for losses over speed, e.g. the largest arm motion over an idle band.  ``settings.revolutions``
     and ``settings.top_order`` must be the scene's (:func:`~beltjax.orders.steady.for_scene`; see
     :func:`response_over_speed` for the checked, chunked entry point)."""
     return jax.vmap(lambda r: steady_case(scene, values, r, settle_s, settings))(jnp.asarray(rpm))
@@ -222,7 +222,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     an attracting cycle settle for that long; those whose settling residual stays above
     ``settle_tol`` are run again with :data:`RETRY_FACTOR` times it, then flagged
     ``not_settled``; ``meta["methods"]`` says which gave each speed); settings:
-    :class:`~beltjax.orders.steady.Settings` (samples per cycle, highest order, tolerances);
+    :class:`~beltjax.orders.steady.Settings` (samples per cycle, highest order, tolerances; run
+    with ``gradients=False`` whatever given: the results are numbers, not differentiable);
     chunk: speeds per compiled batch (:func:`default_chunk`); progress(done, total).  Raises
     :class:`OrdersError` for a scene or speeds without a steady state in crank angle
     (:func:`check`)."""
