@@ -29,18 +29,20 @@ differentiably and P held: its value is a further correction (the residual squar
 derivative in any parameter p is -(P - I)^-1 dPhi/dp, the fixed point's.
 
 Without gradients (``gradients=False``: a response over speed, a sweep) that cycle is not run and
-the last Newton step is taken where it is small (reach at most :data:`PREDICT_REACH`; not at the
-integration's noise), and the loop also stops on Newton's prediction: once the iterate is
-in the quadratic range (residual at most :data:`PREDICT_RESIDUAL`) a step of reach r leaves a
-residual of about C r^2 (C = 0.14-0.56 on the eight-pulley drive with the friction tensioner,
-600-6000 rpm), so a step of reach at most :data:`PREDICT_REACH` is taken without the cycle that
-would confirm it (a cycle with the variational equations, about 2.5 plain ones).  The caller's
-recorded cycle confirms such a state instead: its change over the cycle, divided by 1 - mu (mu the
-largest Floquet multiplier: a change d puts the state about d / (1 - mu) from the cycle), must be
-within :data:`PREDICT_CHECK` (:func:`beltjax.orders.steady.steady_case`, else the case settles).
-On the eight-pulley drives 100 speeds took 19-26 % less (benchmarks/README §5g).  The values agree with the converged
-loop's to the tolerance; their gradients would not (P is the last iterate's), hence the flag, and
-differentiating a ``gradients=False`` orbit raises (:func:`refuse_tangents`).
+the last Newton step is taken where it is small (reach at most :data:`PREDICT_REACH`: like the
+gradient path's implicit-function step, it is not confirmed by a cycle of its own; the recorded
+cycle's change is the case's ``settling``), and the loop also stops on Newton's prediction: once
+the iterate is in the quadratic range (residual at most :data:`PREDICT_RESIDUAL`) a step of reach r
+leaves a residual of about C r^2 (C = 0.14-0.56 on the eight-pulley drive with the friction
+tensioner, 600-6000 rpm), so a step of reach at most :data:`PREDICT_REACH` is taken without the
+cycle that would confirm it (a cycle with the variational equations, about 2.5 plain ones). The
+caller's recorded cycle confirms that state instead: its change over the cycle, divided by 1 - mu
+(mu the largest Floquet multiplier: a change d puts the state about d / (1 - mu) from the cycle),
+must be within :data:`PREDICT_CHECK` (:func:`beltjax.orders.steady.steady_case`, else the case
+settles). On the eight-pulley drives 100 speeds took 19-26 % less (benchmarks/README §5g). The
+values agree with the converged loop's to the tolerance; their gradients would not (P is the last
+iterate's), hence the flag, and differentiating a ``gradients=False`` orbit raises
+(:func:`refuse_tangents`).
 """
 
 from __future__ import annotations
@@ -158,8 +160,8 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
     Returns (y* (N,), info) with info: ``iterations``, ``residual`` (:func:`change_over_cycle` of
     the last iterate), ``multiplier`` (largest Floquet multiplier, -), ``steps`` (all cycles),
     ``ok`` (1.0 / 0.0: converged, to :data:`TOLERANCE` or to the integration's own error
-    (:data:`NOISE_STOP`), finite and attracting), ``predicted`` (1.0 where y* is a Newton step that
-    no cycle confirmed: the caller checks the next cycle against :data:`PREDICT_CHECK`) as floats.
+    (:data:`NOISE_STOP`), finite and attracting), ``predicted`` (1.0 where the loop stopped on
+    Newton's prediction: the caller checks the next cycle against :data:`PREDICT_CHECK`) as floats.
     Differentiable in the parameters ``f`` closes over if ``gradients`` (static; module docstring)."""
     N = y0.shape[0]
     max_steps = min(max_steps, MAX_CYCLE_STEPS)
@@ -201,14 +203,12 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         predicted = jnp.asarray(False)
         if gradients:  # the implicit function's cycle below starts where the residual was measured
             y = jnp.where(done | ~finite, c["y"], c["y"] - step)
-        else:  # steps no cycle confirms (the recorded cycle does, module docstring): the one predicted to
-            # converge, and the last from a converged iterate if small (not at the noise, where an
-            # ill-conditioned P - I may make it large and of no use)
-            stop = ~done & (res <= PREDICT_RESIDUAL) & (reach <= PREDICT_REACH)
-            last = (res <= TOLERANCE) & ~at_noise & (reach <= PREDICT_REACH)
-            predicted = stop | last
-            y = jnp.where(finite & (~done | last), c["y"] - step, c["y"])
-            done = done | stop
+        else:  # the step predicted to converge, which the recorded cycle confirms (module docstring), and
+            # the last step from a converged iterate where small, as the implicit function's step of the
+            # gradient path (an ill-conditioned P - I may make it large and of no use)
+            predicted = ~done & (res <= PREDICT_RESIDUAL) & (reach <= PREDICT_REACH)
+            y = jnp.where(finite & (~done | (reach <= PREDICT_REACH)), c["y"] - step, c["y"])
+            done = done | predicted
         return dict(y=y, k=c["k"] + 1, residual=jnp.where(finite, res, jnp.inf), P=jnp.where(finite, P, c["P"]),
                     steps=c["steps"] + steps, finite=finite, done=done & finite, predicted=predicted & finite)
 
