@@ -39,7 +39,7 @@ cycle that would confirm it (a cycle with the variational equations, about 2.5 p
 caller's recorded cycle confirms that state instead: its change over the cycle, divided by 1 - mu
 (mu the largest Floquet multiplier: a change d puts the state about d / (1 - mu) from the cycle),
 must be within :data:`PREDICT_CHECK` (:func:`beltjax.orders.steady.steady_case`, else the case
-settles). On the eight-pulley drives 100 speeds took 19-26 % less (benchmarks/README §5g). The
+settles). On the eight-pulley drives 100 speeds took 25 % less (benchmarks/README §5g). The
 values agree with the converged loop's to the tolerance; their gradients would not (P is the last
 iterate's), hence the flag, and differentiating a ``gradients=False`` orbit raises
 (:func:`refuse_tangents`).
