@@ -188,8 +188,9 @@ def test_shooting_without_gradients_stops_on_newtons_prediction():
     """A hardening Duffing oscillator forced near its resonance (Newton needs several iterations):
     with gradients=False the loop stops on the prediction (a small step from the quadratic range),
     with fewer variational cycles than the converged loop (one here), and the cycle from its state
-    repeats within PREDICT_CHECK (1 - mu), as the caller checks, and agrees with the converged loop's state to 1e-6 of the
-    motion; differentiating a response case run that way raises, naming the setting."""
+    repeats within PREDICT_CHECK (1 - mu), as the caller checks, and agrees with the converged
+    loop's state to 1e-6 of the motion; differentiating a response case run that way raises,
+    naming the setting."""
     import diffrax
 
     from beltjax.orders import periodic_orbit, shooting

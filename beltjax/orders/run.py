@@ -119,8 +119,9 @@ def check(scene: Scene, rpm) -> None:
 def over_speed(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -> dict:
     """:func:`~beltjax.orders.steady.steady_case` at every speed of ``rpm`` (S,) (rev/min), as one
     pure, vmapped function of the parameter ``values`` {path: value}: differentiable (``jax.grad``;
-    with ``settings.gradients``, the default, else differentiating raises) for losses over speed, e.g. the largest arm motion over an idle band.  ``settings.revolutions``
-    and ``settings.top_order`` must be the scene's (:func:`~beltjax.orders.steady.for_scene`; see
+    with ``settings.gradients``, the default, else differentiating raises) for losses over speed,
+    e.g. the largest arm motion over an idle band.  ``settings.revolutions`` and
+    ``settings.top_order`` must be the scene's (:func:`~beltjax.orders.steady.for_scene`; see
     :func:`response_over_speed` for the checked, chunked entry point)."""
     return jax.vmap(lambda r: steady_case(scene, values, r, settle_s, settings))(jnp.asarray(rpm))
 

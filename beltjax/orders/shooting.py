@@ -216,20 +216,16 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
                 steps=jnp.asarray(0), finite=jnp.asarray(True), done=jnp.asarray(False), predicted=jnp.asarray(False))
     c = jax.lax.while_loop(cond, body, init)
     mult = spectral_radius(c["P"])
-    if not gradients:
-        ok = c["done"] & (mult < 1.0) & jnp.all(jnp.isfinite(c["y"]))
-        info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult,
-                    steps=c["steps"].astype(y0.dtype), ok=ok.astype(y0.dtype), predicted=c["predicted"].astype(y0.dtype))
-        return c["y"], info
-    # the implicit function theorem's step (module docstring): Phi integrated with gradients, P held
-    plain = diffrax.diffeqsolve(diffrax.ODETerm(f), solver, t0=0.0, t1=period, dt0=period / 64, y0=c["y"],
-                                stepsize_controller=controller, max_steps=max_steps, throw=False)
-    rhs = plain.ys[-1] - c["y"]
-    usable = c["done"] & jnp.all(jnp.isfinite(rhs))  # else no step (and no NaN in the gradient)
-    correction = jnp.linalg.solve(jnp.where(usable, c["P"] - eye, eye), jnp.where(usable, rhs, 0.0))
-    y_star = c["y"] - correction
+    if gradients:  # the implicit function theorem's step (module docstring): Phi integrated with gradients, P held
+        plain = diffrax.diffeqsolve(diffrax.ODETerm(f), solver, t0=0.0, t1=period, dt0=period / 64, y0=c["y"],
+                                    stepsize_controller=controller, max_steps=max_steps, throw=False)
+        rhs = plain.ys[-1] - c["y"]
+        usable = c["done"] & jnp.all(jnp.isfinite(rhs))  # else no step (and no NaN in the gradient)
+        correction = jnp.linalg.solve(jnp.where(usable, c["P"] - eye, eye), jnp.where(usable, rhs, 0.0))
+        y_star, steps = c["y"] - correction, c["steps"] + plain.stats["num_steps"]
+    else:  # the loop's last iterate (its last step taken)
+        y_star, steps, usable = c["y"], c["steps"], c["done"]
     ok = usable & (mult < 1.0) & jnp.all(jnp.isfinite(y_star))
-    info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult,
-                steps=(c["steps"] + plain.stats["num_steps"]).astype(y0.dtype), ok=ok.astype(y0.dtype),
-                predicted=jnp.zeros((), y0.dtype))
+    info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult, steps=steps.astype(y0.dtype),
+                ok=ok.astype(y0.dtype), predicted=c["predicted"].astype(y0.dtype))
     return y_star, info
