@@ -22,6 +22,8 @@ _LAZY = {
     "load_scene": "beltjax.scene",
     "loads_scene": "beltjax.scene",
     "parse_scene": "beltjax.scene",
+    "dumps_scene": "beltjax.scene",
+    "write_scene": "beltjax.scene",
     "analyse_statics": "beltjax.statics",
     "analyse_modes": "beltjax.drive_modal",
     "analyse_campbell": "beltjax.campbell",

@@ -154,6 +154,6 @@ from beltjax.optimize.report import (  # noqa: F401
     _describe_constraint, _value_text, check, constraint_report, evaluator, mode_labels, relevant_modes,
     resonance_report, unmet,
 )
-from beltjax.optimize.scenefile import _verify_scene_text, edit_scene_text  # noqa: F401
+from beltjax.optimize.scenefile import _verify_scene_text, edit_scene_text, optimised_scene_text  # noqa: F401
 from beltjax.optimize.plots import plot_history  # noqa: F401
 from beltjax.optimize.command import GOAL_NOT_MET, run  # noqa: F401

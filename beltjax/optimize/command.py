@@ -5,13 +5,12 @@ from __future__ import annotations
 import pathlib
 import time
 
-from beltjax import textfile
 from beltjax.scene import Scene
 from beltjax.optimize.plots import _plot_campbell_band, plot_history
 from beltjax.optimize.problem import load
 from beltjax.optimize.report import (_describe_constraint, _value_text, check, constraint_report, evaluator,
                                      relevant_modes, unmet)
-from beltjax.optimize.scenefile import _verify_scene_text, edit_scene_text
+from beltjax.optimize.scenefile import optimised_scene_text
 from beltjax.optimize.solver import OptimizeResult, optimise
 from beltjax import outputs
 
@@ -95,17 +94,12 @@ def run(scene: Scene, spec_path, out, scene_path=None) -> int:
     missing = unmet(after)
     changes = dict(zip(res.paths, (float(v) for v in res.x)))
     title = scene.description or str(scene_path or scene.source)
-    files, note = [], None
     src = pathlib.Path(scene_path) if scene_path is not None else pathlib.Path(scene.source)
-    if src.is_file():
-        head = (f"# optimised by beltjax optimize ({spec_path}): "
-                + ", ".join(f"{p} {a:.6g} -> {b:.6g}" for p, a, b in zip(res.paths, res.x0, res.x)) + "\n")
-        text = head + edit_scene_text(textfile.read_text(src, "scene"), scene, changes)  # no byte-order mark
-        _verify_scene_text(text, scene, changes)
-        (out / "optimized_scene.toml").write_text(text)
-        files.append("optimized_scene.toml")
-    else:
-        note = "optimized_scene.toml not written: the scene was not read from a file"
+    head = (f"# optimised by beltjax optimize ({spec_path}): "
+            + ", ".join(f"{p} {a:.6g} -> {b:.6g}" for p, a, b in zip(res.paths, res.x0, res.x)) + "\n")
+    text, note = optimised_scene_text(scene, changes, head, src)
+    (out / "optimized_scene.toml").write_text(text, encoding="utf-8")
+    files = ["optimized_scene.toml"]
     for tag, chk, sc in (("before", before, scene), ("after", after, res.scene)):
         plot_layout(sc, chk["statics"], out / f"layout_{tag}.png")
         files.append(f"layout_{tag}.png")

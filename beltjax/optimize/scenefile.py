@@ -1,4 +1,5 @@
-"""The optimised scene file: the scene's text with the optimised values written in."""
+"""The optimised scene file: the scene's text with the optimised values written in (comments and
+layout kept), or, where that text cannot be edited, the whole scene written anew."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ import tomllib
 import numpy as np
 
 from beltjax import parameters
+from beltjax import textfile
 from beltjax.scene import Scene, SceneError, loads_scene
+from beltjax.scene.write import dumps_scene
 from beltjax.optimize.problem import OptimizeError
 
 
@@ -109,3 +112,28 @@ def _verify_scene_text(text: str, original: Scene, values: dict) -> None:
         a, b = float(parameters.get_value(new, p)), float(parameters.get_value(expected, p))
         if not ((math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12 * max(1.0, abs(b))):
             raise OptimizeError(f"the optimised scene file has {p} = {a!r}, expected {b!r}", "optimized_scene.toml")
+
+
+def optimised_scene_text(original: Scene, values: dict, header: str, source) -> tuple[str, str | None]:
+    """(text, note) of ``optimized_scene.toml``: the scene file ``source`` (a path or None) with
+    ``values`` ({path: value}, file units) written in and read back to check it; where there is
+    no file, or its text cannot be edited so (a layout the editor does not know: multi-line
+    arrays, dotted keys, inline tables), the whole optimised scene written by
+    :func:`beltjax.scene.write.dumps_scene` (read back bit for bit; no comments), with a note
+    saying so.  ``header``: comment lines on top."""
+    if source is not None and source.is_file():
+        try:
+            text = header + edit_scene_text(textfile.read_text(source, "scene"), original, values)  # no BOM
+            _verify_scene_text(text, original, values)
+            return text, None
+        except (OptimizeError, ValueError, KeyError, IndexError, TypeError) as exc:
+            why = str(exc) or type(exc).__name__
+            note = (f"optimized_scene.toml written whole (the scene file's comments are not kept): its text could "
+                    f"not be edited in place ({why})")
+    else:
+        note = "optimized_scene.toml written whole: the scene was not read from a file"
+    try:
+        text = dumps_scene(parameters.set_values(original, values), header.rstrip("\n").removeprefix("# "))
+    except SceneError as exc:
+        raise OptimizeError(f"the optimised scene cannot be written: {exc}", "optimized_scene.toml") from None
+    return text, note

@@ -1,0 +1,135 @@
+"""Writing scenes (beltjax.scene.write, beltjax.tomlwrite): every shipped scene, a changed scene,
+a measured trace, hostile strings and the optimiser's scene file read back to the same scene."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import pathlib
+import tomllib
+
+import numpy as np
+import pytest
+
+from beltjax import parameters, tomlwrite
+from beltjax.optimize import OptimizeError, optimised_scene_text
+from beltjax.scene import SceneError, dumps_scene, load_scene, loads_scene, write_scene
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+SCENES = sorted((ROOT / "scenes").glob("*.toml")) + sorted((ROOT / "identification" / "examples").rglob("*.toml"))
+SCENES = [p for p in SCENES if "[belt]" in p.read_text()]
+
+
+def _same(a, b):
+    """Every parameter path and the structure alike, numbers bit for bit."""
+    assert parameters.paths(a) == parameters.paths(b)
+    for p in parameters.paths(a):
+        x, y = np.asarray(parameters.get_value(a, p)), np.asarray(parameters.get_value(b, p))
+        assert np.array_equal(x, y, equal_nan=True), (p, x, y)
+    for attr in ("route", "model", "initial", "simulation", "description"):
+        assert getattr(a, attr) == getattr(b, attr), attr
+    assert [p.name for p in a.pulleys] == [p.name for p in b.pulleys]
+    assert [p.driven for p in a.pulleys] == [p.driven for p in b.pulleys]
+    assert (a.tensioner is None) == (b.tensioner is None) and (a.isolator is None) == (b.isolator is None)
+    for x, y in ((a.belt.length, b.belt.length), (a.belt.static_tension, b.belt.static_tension)):
+        assert (x is None) == (y is None)
+    for name in ("torques", "fluctuations", "decouplers", "span_loads"):
+        assert len(getattr(a, name)) == len(getattr(b, name)), name
+
+
+@pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
+def test_every_shipped_scene_reads_back(path, tmp_path):
+    scene = load_scene(path)
+    write_scene(scene, tmp_path / "copy.toml", header="a copy")
+    text = (tmp_path / "copy.toml").read_text()
+    assert text.startswith("# a copy\n")
+    _same(scene, load_scene(tmp_path / "copy.toml"))
+
+
+def test_changed_numbers_read_back_to_the_bit():
+    """Numbers set in code (no short decimal form) come back bit for bit."""
+    scene = load_scene(ROOT / "scenes" / "fead_8pulley_friction.toml")
+    rng = np.random.default_rng(3)
+    values = {p: float(parameters.get_value(scene, p)) * (1 + 1e-3 * rng.standard_normal())
+              for p in ("belt.EA", "belt.EI", "pulley.ac.center.x", "tensioner.spring_stiffness",
+                        "tensioner.friction_moment", "pulley.alternator.inertia")}
+    changed = parameters.set_values(scene, values)
+    back = loads_scene(dumps_scene(changed))
+    _same(changed, back)
+    for p, v in values.items():
+        assert float(parameters.get_value(back, p)) == v
+
+
+def test_a_measured_trace_is_written_as_its_harmonics(tmp_path):
+    fead = (ROOT / "scenes" / "fead_8pulley.toml").read_text()
+    head, _, _ = fead.partition("[[fluctuation]]")
+    alpha = np.linspace(0.0, 720.0, 721)
+    rpm = 800.0 * (1.0 + 2 * math.radians(0.6) * np.cos(2 * np.radians(alpha)))
+    (tmp_path / "crank.csv").write_text("angle_deg,speed_rpm\n" + "".join(f"{float(a)!r},{float(r)!r}\n" for a, r in zip(alpha, rpm)))
+    (tmp_path / "scene.toml").write_text(head + '[[fluctuation]]\npulley = "crank"\nfile = "crank.csv"\n')
+    scene = load_scene(tmp_path / "scene.toml")
+    text = dumps_scene(scene)
+    assert "file" not in tomllib.loads(text)["fluctuation"][0] and "read from crank.csv" in text
+    back = loads_scene(text)
+    assert len(back.fluctuations) == len(scene.fluctuations) == 24
+    _same(scene, back)
+
+
+def test_hostile_strings_and_values_read_back():
+    """Quotes, backslashes, control characters, TOML syntax and non-ASCII in names and the
+    description; a name that is not a bare key in [initial] rotation_deg."""
+    text = (ROOT / "scenes" / "sim_two_pulley_release.toml").read_text()
+    scene = load_scene(ROOT / "scenes" / "sim_two_pulley_release.toml")
+    odd = 'alt "x" \\ ]\t= #ü 漢'
+    free = "alternator"  # a free pulley, turned by [initial] rotation_deg
+    text = text.replace(f'"{free}"', tomlwrite.string(odd)).replace(f"{{ {free} =", f"{{ {tomlwrite.string(odd)} =")
+    text = 'description = ' + tomlwrite.string('line\nnext "q" \\ \x7f [belt]') + "\n" + text.partition("\n")[2]
+    scene = loads_scene(text)
+    assert scene.pulleys[[p.name for p in scene.pulleys].index(odd)].name == odd
+    assert dict(scene.initial.rotation_deg)[odd] == 2.0 and scene.description.startswith("line\nnext")
+    _same(scene, loads_scene(dumps_scene(scene)))
+
+
+def test_the_toml_values():
+    doc = {"a": 1, "b": -0.0, "c": 1e-310, "d": [1.5, 2, "x"], "e": True, "f": "é\"\\\n",
+           "t": {"k": 0.1 + 0.2, "inline": {"a b": 1, "c": [1e300]}}, "arr": [{"x": 1}, {"x": 2.5}]}
+    back = tomllib.loads(tomlwrite.dumps(doc))
+    assert back == doc and math.copysign(1, back["b"]) < 0
+    specials = tomllib.loads(tomlwrite.dumps({"x": [math.inf, -math.inf, math.nan]}))["x"]
+    assert specials[:2] == [math.inf, -math.inf] and math.isnan(specials[2])
+    with pytest.raises(TypeError):
+        tomlwrite.value(object())
+
+
+def test_a_scene_no_file_may_hold_is_refused():
+    """A value no scene file may hold (a belt damping without its effect listed) is refused with
+    its key, not written as a file that means something else."""
+    scene = load_scene(ROOT / "scenes" / "two_pulley_T200.toml")
+    bad = dataclasses.replace(scene, belt=dataclasses.replace(scene.belt, CA=np.float64(3.0)))
+    with pytest.raises(SceneError, match=r"belt\.CA") as err:
+        dumps_scene(bad)
+    assert "\n" not in str(err.value)
+
+
+def test_optimised_scene_file_in_place_or_whole(tmp_path):
+    """The optimiser edits the file's text where it can (comments kept); a layout its editor does
+    not know (a multi-line array) or a scene not read from a file is written whole, with a note;
+    either way the file reads back to the optimised scene."""
+    path = ROOT / "scenes" / "two_pulley_T200.toml"
+    scene = load_scene(path)
+    values = {"pulley.alternator.center.x": 0.2301, "belt.EI": 0.031}
+    expected = parameters.set_values(scene, values)
+    text, note = optimised_scene_text(scene, values, "# head\n", path)
+    assert note is None and "[optimised; was" in text
+    _same(expected, loads_scene(text))
+    multi = path.read_text().replace("center = [0.2232, 0.135]", "center = [\n  0.2232,\n  0.135,\n]")
+    assert multi != path.read_text()
+    (tmp_path / "multi.toml").write_text(multi)
+    text, note = optimised_scene_text(load_scene(tmp_path / "multi.toml"), values, "# head\n", tmp_path / "multi.toml")
+    assert note.startswith("optimized_scene.toml written whole") and text.startswith("# head\n")
+    _same(expected, loads_scene(text))
+    text, note = optimised_scene_text(scene, values, "# head\n", None)
+    assert "not read from a file" in note
+    _same(expected, loads_scene(text))
+    with pytest.raises(OptimizeError, match="cannot be written"):
+        optimised_scene_text(scene, {"belt.CA": 2.0}, "", None)
