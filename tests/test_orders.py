@@ -401,7 +401,8 @@ def test_sweep_response_settles_where_the_shooting_gave_up(monkeypatch):
 
     def run_local(scene, chunks, rpm, opts, *args):
         got = real(scene, chunks, rpm, opts, *args)
-        passes.append((opts.response.method, opts.settle_s, sum(len(next(iter(c.values()))) for c in chunks)))
+        passes.append((opts.response.method, float(chunks[0][batch.SETTLE_COLUMN][0]),
+                       sum(len(next(iter(c.values()))) for c in chunks)))
         if opts.response.method == "shooting":  # as a case the shooting gave up: not settled
             cases = iter([("not_settled", 0.0), ("supercritical", 1.0)])
             for r in got:  # the chunks, in order
@@ -424,6 +425,36 @@ def test_sweep_response_settles_where_the_shooting_gave_up(monkeypatch):
     assert abs(res["response_arm_p2p_deg"][0] - one.channel("arm_angle_deg", "p2p")[0]) < 1e-9
     assert abs(res["response_settling"][0] / one.settling[0] - 1) < 1e-2  # (a ratio of small differences)
     assert one.settling[0] < orders.SETTLE_TOL and list(res["status"]) == ["ok", "supercritical"]
+
+
+def test_sweep_settling_passes_share_one_program(monkeypatch):
+    """A case still unsettled after the settling pass runs RETRY_FACTOR x longer with the same
+    compiled batch: the settling time is a column of the batch, not a static option (the passes'
+    options are equal, so beltjax.sweep.batch._batch_fn gives the same jitted function, whose
+    shapes are equal too).  Here the shooting and the first settling pass are made to miss by a
+    stand-in, as in the test above (whose programs this one reuses)."""
+    from beltjax import sweep
+    from beltjax.sweep import batch
+
+    real, passes = batch._run_local, []
+
+    def run_local(scene, chunks, rpm, opts, size, *args):
+        got = real(scene, chunks, rpm, opts, size, *args)
+        settle = float(chunks[0][batch.SETTLE_COLUMN][0])
+        passes.append((opts, settle, size))
+        if settle < orders.run.RETRY_FACTOR:  # not settled yet: run again
+            for r in got:
+                r["response_settling"][:], r["code"][:] = np.inf, sweep.STATUS.index("not_settled")
+                r["response_rerun"][:] = True
+        return got
+
+    monkeypatch.setattr(batch, "_run_local", run_local)
+    values = {"tensioner.damping": np.array([0.08]), "belt.length": np.array([1.786])}
+    res = sweep.evaluate(loads_scene(SCENE), values, ("statics", "response"), settle_s=1.0)
+    methods = [(o.response.method, t) for o, t, _ in passes]
+    assert methods == [("shooting", 1.0), ("settle", 1.0), ("settle", orders.run.RETRY_FACTOR)]
+    assert passes[1][0] == passes[2][0] and passes[1][2] == passes[2][2]  # one program, one shape
+    assert res["response_settling"][0] < orders.SETTLE_TOL and list(res["status"]) == ["ok"]
 
 
 def test_gradient_over_speed_and_optimize_arm_motion():

@@ -6,7 +6,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
-import math
 from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -17,7 +16,8 @@ import numpy as np
 
 from beltjax import critical, drive, drive_modal, friction, mode_batch, mode_tracking, parameters, statics, sweep_modes, validate
 from beltjax.scene import Scene
-from beltjax.sweep.spec import CAMPBELL_CHUNK_POINTS, MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
+from beltjax.sweep.spec import MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
+from beltjax.sweep.chunks import _chunk_size, _devices, default_chunk  # noqa: F401 (re-exported)
 from beltjax.drive.effects import effects_of
 
 @dataclasses.dataclass(frozen=True)
@@ -29,8 +29,11 @@ class _Options:
     gyro: bool
     steps: int = 1
     track: int = 0
-    settle_s: float = 1.0
     response: Any = None  # the response's beltjax.orders.Settings (static)
+
+#: the batch column that carries the response's settling time (s): traced, so that the fallback's
+#: passes of 1x and RETRY_FACTOR x settle_s share one compiled program
+SETTLE_COLUMN = "response.settle_s"
 
 def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] = ("statics", "modal"),
                  modes: int = 12, rpm=None, gyroscopic: bool = False, steps: int = 1,
@@ -150,7 +153,9 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     return res
 
 def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options, ref=None) -> dict:
-    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track, opts.settle_s,
+    values = dict(values)
+    settle = values.pop(SETTLE_COLUMN, 1.0)  # (a column of the batch with the response output)
+    return case_outputs(scene, values, opts.outputs, opts.modes, rpm, opts.gyro, opts.steps, opts.track, settle,
                         opts.response, ref)
 
 def full_values(scene: Scene, values: Mapping[str, Any]) -> dict[str, Any]:
@@ -197,84 +202,6 @@ def _batch_fn(opts: _Options, devices: tuple | None, keys: tuple[str, ...]) -> C
     mesh = Mesh(np.asarray(devices), ("cases",))
     return jax.jit(jax.shard_map(batch, mesh=mesh, in_specs=(P(), P("cases"), P(), P()), out_specs=P("cases"),
                                  check_vma=False))
-
-def _devices(devices="auto") -> tuple | None:
-    """Devices to shard a batch over (None: no sharding).  "auto": every local device when there
-    are several accelerators (GPU/TPU).  Several CPU "devices" (``--xla_force_host_platform_device_count``)
-    share the same cores, and XLA's CPU runtime wedged here (all threads idle) running the batched
-    eigen-solves on two of them, so CPU devices are used only when passed explicitly."""
-    if devices is None:
-        return None
-    if isinstance(devices, str):
-        if devices != "auto":
-            raise SweepError(f"\"auto\", None or a sequence of JAX devices, got {devices!r}", "devices")
-        devs = jax.local_devices()
-        return tuple(devs) if len(devs) > 1 and devs[0].platform != "cpu" else None
-    devs = tuple(devices)
-    return devs if len(devs) > 1 else None
-
-# Accelerator chunks: the case's working set is taken as ACCEL_WORDS_PER_CASE n^2 float64 words
-# (n independent coordinates: the Newton Jacobian, the stiffness and mass matrices, the eigen
-# solver's workspace and the forward-mode tangents), and a chunk may fill ACCEL_MEMORY_FRACTION
-# of the device's memory; chunks are powers of two between ACCEL_MIN_CHUNK and ACCEL_MAX_CHUNK
-# (few shapes: every shape is a compilation of 40-50 s on a GPU).  Measured on one H100 (issue
-# 24): the two-pulley bench ran 4,400 cases/s in chunks of 64 and 19,300 in chunks of 1024.
-ACCEL_WORDS_PER_CASE = 64
-ACCEL_MEMORY_FRACTION = 0.25
-ACCEL_MIN_CHUNK, ACCEL_MAX_CHUNK = 64, 4096
-ACCEL_FALLBACK_BYTES = 16 * 2**30  # a device that does not report its memory
-
-def _pow2_floor(x: float) -> int:
-    return 1 << max(0, int(math.floor(math.log2(max(1.0, x)))))
-
-def _pow2_ceil(x: float) -> int:
-    return 1 << max(0, int(math.ceil(math.log2(max(1.0, x)))))
-
-def _device_bytes(device) -> int:
-    """The device's memory in bytes (its allocator's limit), or ACCEL_FALLBACK_BYTES."""
-    try:
-        stats = device.memory_stats() or {}
-    except Exception:  # a backend without memory statistics
-        stats = {}
-    return int(stats.get("bytes_limit") or ACCEL_FALLBACK_BYTES)
-
-def default_chunk(devices: tuple | None = None, n_coordinates: int | None = None) -> int:
-    """Default cases per compiled batch: 1 per CPU device; on accelerators, from the device's
-    memory and the problem's size (``n_coordinates``: independent coordinates of a case).
-
-    On CPU a batch is slower per case than one case at a time: the batched arrays leave the
-    cache (each fused operation streams over the whole batch) and batched LAPACK calls are
-    loops; a vmapped Newton also iterates until its slowest case converges.  Two-pulley bench
-    (130 coordinates), statics + modes, interleaved on the shared 2-core machine: 4.2-5.1 ms
-    per case in batches of 1, 3.9-8.9 ms of 2, 6-11 ms of 4, 13-19 ms of 8 and 13-20 ms of 32,
-    against 5.0-5.5 ms for the jitted single case (benchmarks/bench_sweep.py).  On a GPU a
-    batch pays until the device is full: the largest power of two whose working set
-    (ACCEL_WORDS_PER_CASE n^2 words per case) fits ACCEL_MEMORY_FRACTION of the memory, between
-    ACCEL_MIN_CHUNK and ACCEL_MAX_CHUNK per device (benchmarks/bench_sweep_gpu.py).
-    """
-    devs = devices or tuple(jax.local_devices()[:1])
-    if devs[0].platform == "cpu":
-        return len(devs)
-    n = max(1, int(n_coordinates or 256))
-    fit = ACCEL_MEMORY_FRACTION * _device_bytes(devs[0]) / (8.0 * ACCEL_WORDS_PER_CASE * n * n)
-    return len(devs) * min(ACCEL_MAX_CHUNK, max(ACCEL_MIN_CHUNK, _pow2_floor(fit)))
-
-def _chunk_size(n: int, chunk: int | None, n_rpm: int, devices: tuple | None,
-                n_coordinates: int | None = None) -> int:
-    """Cases per compiled batch: ``chunk`` (default :func:`default_chunk`; fewer for campbell, to
-    bound memory), at most the cases rounded up (to 8 on CPU, to a power of two on accelerators,
-    whose compilations cost more: fewer shapes), a multiple of the device count."""
-    devs = devices or tuple(jax.local_devices()[:1])
-    n_dev = len(devices) if devices else 1
-    chunk = default_chunk(devices, n_coordinates) if chunk is None else chunk
-    cpu = devs[0].platform == "cpu"
-    # campbell: every case is n_rpm modal problems (CAMPBELL_CHUNK_POINTS of them per chunk on
-    # CPU, as many as the memory rule allows on accelerators)
-    points = CAMPBELL_CHUNK_POINTS if cpu else default_chunk(devices, n_coordinates)
-    size = chunk if n_rpm == 0 else max(1, min(chunk, points // n_rpm))
-    cap = 8 * math.ceil(n / 8) if cpu else _pow2_ceil(n)
-    size = min(size, cap)
-    return n_dev * math.ceil(size / n_dev)
 
 def _matrix(values: Mapping[str, np.ndarray], keys: tuple[str, ...], size: int) -> np.ndarray:
     """(size, len(keys)) float64 values, the last case repeated to pad to ``size`` rows."""
@@ -425,7 +352,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         except OrdersError as exc:
             raise SweepError(str(exc), "outputs") from None
     opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track,
-                    settle_s=float(settle_s), response=for_scene(scene, Settings(gradients=False)) if "response" in outputs else None)
+                    response=for_scene(scene, Settings(gradients=False)) if "response" in outputs else None)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
     ref = np.asarray(refs["modal"][0].W) if track and refs.get("modal") else None  # projected on the device,
     ref = ref.real if ref is not None and not np.any(ref.imag) else ref  # in real arithmetic where it can be
@@ -438,9 +365,10 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         run_values = {k: np.where(invalid, v[j], v) for k, v in values.items()}
     run_values = {k: np.broadcast_to(np.asarray(v, float), (n,)) for k, v in full_values(scene, run_values).items()}
     devices = _devices(devices) if backend == "local" else None
-    def execute(idx, opts, progress=None, whole=False):  # the cases idx, in chunks of one size (whole: one chunk)
+    def execute(idx, opts, settle, progress=None, whole=False):  # the cases idx, in chunks of one size (whole: one
         size = idx.size if whole else _chunk_size(idx.size, chunk, rpm.size, devices, drive.n_independent(scene))
-        chunks = [{k: v[idx][sl] for k, v in run_values.items()} for sl in _slices(idx.size, size)]
+        cols = {**run_values, SETTLE_COLUMN: np.full(n, float(settle))} if opts.response else run_values  # chunk)
+        chunks = [{k: v[idx][sl] for k, v in cols.items()} for sl in _slices(idx.size, size)]
         if backend == "local":
             results = _run_local(scene, chunks, rpm, opts, size, devices, progress, post, ref)
         else:
@@ -449,19 +377,19 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
             results = _run_dask(scene, chunks, rpm, opts, size, dask, progress, post, ref)
         return {k: np.concatenate([r[k] for r in results]) for k in results[0]}
 
-    out = execute(np.arange(n), opts, progress)
+    out = execute(np.arange(n), opts, settle_s, progress)
     def unsettled(o):  # the response not reached and no earlier fault (an invalid case ran a valid one)
         return o.pop("response_rerun", False) & np.isin(o["code"], (_CODE["span_slack"], _CODE["not_settled"]))
 
     rerun = unsettled(out) & ~invalid
-    for time_s, method in fallback_passes(opts.response.method, opts.settle_s) if opts.response else []:
+    for time_s, method in fallback_passes(opts.response.method, float(settle_s)) if opts.response else []:
         idx = np.flatnonzero(rerun)  # the cases whose periodic state was not reached run again, as in beltjax orders
         if not idx.size:
             break
         host = fallback_device(idx.size) if backend == "local" and devices is None else None  # a few: on the
         with jax.default_device(host) if host is not None else contextlib.nullcontext():  # host's CPU, one batch
-            again = execute(idx, dataclasses.replace(opts, settle_s=time_s, response=dataclasses.replace(
-                opts.response, method=method)), whole=host is not None)
+            again = execute(idx, dataclasses.replace(opts, response=dataclasses.replace(opts.response, method=method)),
+                            time_s, whole=host is not None)
         rerun = np.zeros(n, dtype=bool)
         rerun[idx] = unsettled(again)
         for k in out:
