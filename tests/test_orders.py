@@ -363,6 +363,28 @@ def test_bad_arguments(tmp_path, capsys, args, key):
     assert not out.exists()
 
 
+def test_failed_speeds_are_blank_and_reported(tmp_path, batched):
+    """Speeds whose transient failed carry NaN, not the failed run's numbers (a speed of 1e-300 rpm
+    hit max_steps with an arm swing of inf), and a run whose every speed failed prints its summary
+    and writes its files (it raised on an all-NaN slice)."""
+    import copy
+
+    from beltjax.orders import command, run
+
+    stats = run.blank_failed(batched.stats, ["ok", "solver_failed", "not_converged"])
+    for k, v in stats.items():
+        if k != "t_s":
+            assert np.all(np.isnan(v[1:])) and np.array_equal(v[0], batched.stats[k][0], equal_nan=True), k
+    assert np.array_equal(stats["t_s"], batched.stats["t_s"])
+    res = copy.copy(batched)
+    res.status = ["solver_failed"] * len(res.rpm)
+    res.stats = run.blank_failed(batched.stats, res.status)
+    text = command.summary(res)
+    assert "solver failed: 500-700 rpm" in text and "largest span tension swing: none" in text
+    assert "largest arm motion: none" in text and "nan" in text.splitlines()[-1]
+    assert all(f.stat().st_size > 0 for f in command.write(res, tmp_path, "every speed failed"))
+
+
 def test_sweep_response_output_equals_the_response(tmp_path, batched):
     """beltjax sweep's response output: each case's steady state is response_over_speed's of the
     scene with that case's values (a tolerance study of the tensioner's damping and the belt

@@ -59,6 +59,13 @@ def _where(rpm: np.ndarray, mask: np.ndarray) -> str:
     return ", ".join(runs)
 
 
+def _extreme(x: np.ndarray, pick) -> tuple | None:
+    """The index of ``x``'s extreme finite value by ``pick`` (np.nanargmax or np.nanargmin), or
+    None where no value is finite (every speed failed)."""
+    x = np.where(np.isfinite(x), x, np.nan)
+    return None if not np.isfinite(x).any() else np.unravel_index(int(pick(x)), x.shape)
+
+
 def summary(result: OrdersResult) -> str:
     """The printed summary: speeds, flags, the worst arm motion, span swing and slip margin, a table."""
     rpm, st = result.rpm, np.asarray(result.status)
@@ -75,20 +82,27 @@ def summary(result: OrdersResult) -> str:
     for s in sorted(set(st) - {"ok"}):
         lines.append(f"  {s.replace('_', ' ')}: {_where(rpm, st == s)} rpm")
     arm = result.stats.get("arm_angle_deg:p2p")
+    none = "none (no speed gave a result)"
     if arm is not None:
-        i = int(np.nanargmax(arm))
-        k = int(np.argmax(result.stats["arm_angle_deg:orders"][i]))
-        lines.append(f"  largest arm motion: {arm[i]:.3g} deg peak to peak at {rpm[i]:.0f} rpm "
-                     f"(order {result.orders[k]:g}: {result.stats['arm_angle_deg:orders'][i, k]:.3g} deg amplitude)")
+        at = _extreme(arm, np.nanargmax)
+        if at is None:
+            lines.append(f"  largest arm motion: {none}")
+        else:
+            i, = at
+            k = int(np.argmax(result.stats["arm_angle_deg:orders"][i]))
+            lines.append(f"  largest arm motion: {arm[i]:.3g} deg peak to peak at {rpm[i]:.0f} rpm "
+                         f"(order {result.orders[k]:g}: {result.stats['arm_angle_deg:orders'][i, k]:.3g} deg amplitude)")
     ten = result.stats["span_tensions_N:p2p"]
-    i, j = np.unravel_index(int(np.nanargmax(ten)), ten.shape)
-    lines.append(f"  largest span tension swing: {ten[i, j]:.4g} N peak to peak, span "
-                 f"{result.columns['span_tensions_N'][j]} at {rpm[i]:.0f} rpm")
+    at = _extreme(ten, np.nanargmax)
+    lines.append(f"  largest span tension swing: {none}" if at is None else
+                 f"  largest span tension swing: {ten[at]:.4g} N peak to peak, span "
+                 f"{result.columns['span_tensions_N'][at[1]]} at {rpm[at[0]]:.0f} rpm")
     margins = result.stats.get("min_slip_margin")
     if margins is not None:
-        i, j = np.unravel_index(int(np.nanargmin(margins)), margins.shape)
-        lines.append(f"  least slip margin: {margins[i, j]:.3g} ({result.columns['min_slip_margin'][j]}) at "
-                     f"{rpm[i]:.0f} rpm")
+        at = _extreme(margins, np.nanargmin)
+        lines.append(f"  least slip margin: {none}" if at is None else
+                     f"  least slip margin: {margins[at]:.3g} ({result.columns['min_slip_margin'][at[1]]}) at "
+                     f"{rpm[at[0]]:.0f} rpm")
         for j, name in enumerate(result.columns["min_slip_margin"]):
             bad = margins[:, j] <= 0
             if bad.any():
@@ -101,7 +115,7 @@ def summary(result: OrdersResult) -> str:
     head = f"  {'rpm':>7}  {'status':<13} {'arm p2p deg':>11}  {'span p2p N':>10} {'span':<24} {'least margin':>12}"
     lines.append(head)
     for i in rows:
-        j = int(np.argmax(ten[i]))
+        j = int(np.nanargmax(ten[i])) if np.isfinite(ten[i]).any() else 0
         a = f"{arm[i]:11.3g}" if arm is not None else f"{'-':>11}"
         mg = f"{np.min(margins[i]):12.3g}" if margins is not None else f"{'-':>12}"
         lines.append(f"  {rpm[i]:7.0f}  {st[i]:<13} {a}  {ten[i, j]:10.4g} {result.columns['span_tensions_N'][j]:<24} {mg}")

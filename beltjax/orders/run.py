@@ -315,5 +315,14 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         steps=out["steps"].astype(int).tolist(), t_end_s=out["t_end_s"].tolist(), wall_s=wall, chunk=size,
         values={k: float(v) for k, v in values.items()},
     )
-    return OrdersResult(rpm=rpm, stats=stats, columns=columns, orders=settings.orders(),
-                        status=_status(out, settle_tol), settling=out["settling"], units=units, meta=meta)
+    status = _status(out, settle_tol)
+    return OrdersResult(rpm=rpm, stats=blank_failed(stats, status), columns=columns, orders=settings.orders(),
+                        status=status, settling=out["settling"], units=units, meta=meta)
+
+
+def blank_failed(stats: dict, status) -> dict:
+    """``stats`` with NaN at the speeds whose statics did not converge or whose transient failed
+    (their numbers describe no state; as a sweep's failed cases), the sample times kept."""
+    failed = np.isin(np.asarray(status), ("not_converged", "solver_failed"))
+    return {k: v if k == "t_s" or not failed.any() else
+            np.where(failed.reshape((-1,) + (1,) * (np.ndim(v) - 1)), np.nan, v) for k, v in stats.items()}
