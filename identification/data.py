@@ -47,12 +47,18 @@ def dataset_file(base, name: str, key: str) -> pathlib.Path:
     return path
 
 
+#: the largest magnitude a data value may have: the fits square and sum their data, and the square
+#: of a number above about 1e154 overflows float64 (a value of 1e200 made a sine fit's residual NaN)
+MAX_VALUE = 1e100
+
+
 def read_csv(path: pathlib.Path, columns: Sequence[str], key: str, min_rows: int = 3) -> dict[str, np.ndarray]:
     """Columns of a CSV file with a header line: {name: float64 array}.
 
     The file is read by :func:`beltjax.textfile.read_text` (a regular file of at most 64 MiB,
     UTF-8, a byte-order mark accepted).  ``columns`` must all be present (extra columns are
-    ignored); every value must be a finite number; at least ``min_rows`` rows.  Raises
+    ignored); every value must be a finite number of magnitude at most :data:`MAX_VALUE`; at
+    least ``min_rows`` rows.  Raises
     :class:`DataError` naming ``key`` and the file, with a line and column, never the file's text.
     """
     path = pathlib.Path(path)
@@ -85,6 +91,10 @@ def read_csv(path: pathlib.Path, columns: Sequence[str], key: str, min_rows: int
                 raise DataError(f"{name} line {n}: not a number in column {i + 1} ({c})", key) from None
         if not all(math.isfinite(v) for v in vals):
             raise DataError(f"{name} line {n}: NaN or infinite value", key)
+        big = next((j for j, v in enumerate(vals) if abs(v) > MAX_VALUE), None)
+        if big is not None:
+            raise DataError(f"{name} line {n}: {vals[big]:.3g} in column {idx[big] + 1} ({columns[big]}) is beyond "
+                            f"+-{MAX_VALUE:g}, where the fits' sums of squares overflow float64", key)
         rows.append(vals)
     if len(rows) < min_rows:
         raise DataError(f"{name} has {len(rows)} data rows; at least {min_rows} are needed", key)
