@@ -69,13 +69,18 @@ def main():
         got = {}
         for method, chunk in runs:
             settings = orders.Settings(method=method)
+            start = [time.perf_counter()]
+
+            def progress(done, total):  # each batch's end (the main pass, then any fallback pass)
+                print(f"    {time.perf_counter() - start[0]:7.1f} s: {done}/{total} speeds of a pass", flush=True)
+
             t0 = time.perf_counter()
-            orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings)
+            orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings, progress=progress)
             first = time.perf_counter() - t0
             print(f"  ({name}, {method}: first call {first:.1f} s)", flush=True)
             with _common.exclusive(args.lock):
-                t0 = time.perf_counter()
-                r = orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings)
+                t0 = start[0] = time.perf_counter()
+                r = orders.response_over_speed(sc, rpm, chunk=chunk, settings=settings, progress=progress)
                 wall = time.perf_counter() - t0
             got.setdefault(method, r)
             steps = np.asarray(r.meta["steps"])
