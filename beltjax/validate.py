@@ -31,6 +31,7 @@ from beltjax import schema
 from beltjax.errors import BeltjaxError
 from beltjax.geometry import MIN_WRAP
 from beltjax.scene import TENSIONER, Scene, SceneError
+from beltjax.scene.spec import drive_pulley_index
 
 #: the statuses this module gives, in order of precedence ("ok" when none)
 STATUSES = ("invalid_value", "overlap", "no_belt_path", "ill_conditioned")
@@ -44,7 +45,7 @@ _LOAD_SCALARS = {"torque": ("mean_Nm", "amplitude_Nm", "frequency_hz", "phase_de
 
 def drive_pulley_name(scene: Scene) -> str:
     """The pulley whose speed sets the belt's: the (first) driven one, else the first in the file."""
-    return next((p.name for p in scene.pulleys if p.driven), scene.pulleys[0].name)
+    return scene.pulleys[drive_pulley_index(scene.pulleys)].name
 
 
 def is_traced(scene) -> bool:

@@ -14,7 +14,7 @@ import dataclasses
 
 import numpy as np
 
-from beltjax.scene.spec import TENSIONER
+from beltjax.scene.spec import TENSIONER, drive_pulley_index
 from beltjax.drive.effects import Effects, effects_of
 from beltjax.drive.layouts import Layout, layout_of
 from beltjax.drive.spans import SpanModel, spans_of
@@ -119,8 +119,7 @@ def _assemble(scene) -> Drive:
     order = scene.route.order
     iso = None if scene.isolator is None else scene.isolator.pulley  # an isolated crank's rim turns freely
     free = tuple(True if name in (TENSIONER, iso) else not scene.pulley(name).driven for name in order)
-    driven = [p.name for p in scene.pulleys if p.driven and p.name in order]
-    name = driven[0] if driven else next(p.name for p in scene.pulleys if p.name in order)
+    name = scene.pulleys[drive_pulley_index(scene.pulleys, order)].name
     return Drive(spans_of(scene), layout_of(scene), effects_of(scene), tuple(order),
                  tuple(int(s) for s in scene.route.senses), free, order.index(name),
                  tuple(order.index(d.pulley) for d in scene.decouplers))

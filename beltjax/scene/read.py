@@ -11,7 +11,7 @@ import jax.numpy as jnp
 
 from beltjax import geometry, textfile
 from beltjax.tomltable import describe
-from beltjax.scene.spec import Scene, TENSIONER
+from beltjax.scene.spec import Scene, TENSIONER, drive_pulley_index
 from beltjax.scene import fluctuations as fluctuation_tables
 from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_decouplers, _parse_initial, _parse_isolator, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
 
@@ -81,7 +81,7 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
         if p.name in seen:
             _fail(f"pulley[{i}].name", f"duplicated name {p.name!r} (also pulley[{seen[p.name]}])", source)
         seen[p.name] = i
-    drive = next((i for i, p in enumerate(pulleys) if p.driven), 0)
+    drive = drive_pulley_index(pulleys)
     for i, p in enumerate(raw):
         if i != drive and isinstance(p, dict) and "speed_rpm" in p:
             _fail(

@@ -341,6 +341,14 @@ class Scene(eqx.Module):
         return geometry.drive_geometry(centers, radii, self.route.senses, names=self.route.order, check=check)
 
 
+def drive_pulley_index(pulleys, names=None) -> int:
+    """Index in ``pulleys`` (a sequence of :class:`Pulley`) of the drive pulley, whose speed sets
+    the belt's: the first driven one in file order, else the first; only the pulleys named in
+    ``names`` (e.g. the route's order) count where given.  The one statement of that rule."""
+    counted = [i for i, p in enumerate(pulleys) if names is None or p.name in names]
+    return next((i for i in counted if pulleys[i].driven), counted[0] if counted else 0)
+
+
 def _interp_held(x, xp, fp):
     """Piecewise-linear interpolation of the table (xp increasing, fp) at x, held beyond its ends:
     ``jnp.interp``'s values as a sum of one clipped ramp per segment,

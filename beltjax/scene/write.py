@@ -18,7 +18,7 @@ import jax
 import numpy as np
 
 from beltjax import tomlwrite
-from beltjax.scene.spec import Scene, SceneError
+from beltjax.scene.spec import Scene, SceneError, drive_pulley_index
 
 
 def _f(x) -> float:
@@ -118,7 +118,7 @@ def scene_document(scene: Scene) -> dict:
     if scene.description:
         doc["description"] = scene.description
     doc["belt"] = _belt(scene.belt)
-    drive = next((i for i, p in enumerate(scene.pulleys) if p.driven), 0)
+    drive = drive_pulley_index(scene.pulleys)
     doc["pulley"] = [_pulley(p, i == drive) for i, p in enumerate(scene.pulleys)]
     if scene.tensioner is not None:
         doc["tensioner"] = _tensioner(scene.tensioner)
@@ -161,8 +161,9 @@ def _comparable(scene: Scene) -> Scene:
     return dataclasses.replace(scene, source="", fluctuations=flucts)
 
 
-def _first_difference(a: Scene, b: Scene) -> str | None:
-    """The key path of the first number or structure in which ``a`` and ``b`` differ, or None."""
+def first_difference(a: Scene, b: Scene) -> str | None:
+    """The key path of the first number or structure in which ``a`` and ``b`` differ (bit for bit;
+    NaN equals NaN; the scenes' labels and trace file names not compared), or None."""
     la, ta = jax.tree_util.tree_flatten_with_path(_comparable(a))
     lb, tb = jax.tree_util.tree_flatten_with_path(_comparable(b))
     if ta != tb:
@@ -190,7 +191,7 @@ def dumps_scene(scene: Scene, header: str = "") -> str:
         back = loads_scene(text, source=scene.source)
     except SceneError as exc:
         raise SceneError(f"the written scene does not read back: {exc}", exc.key) from None
-    where = _first_difference(scene, back)
+    where = first_difference(scene, back)
     if where is not None:
         raise SceneError(f"the written scene reads back with another {where}", where)
     return text
