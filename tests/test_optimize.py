@@ -252,12 +252,15 @@ def test_duplicate_variable_and_malformed_file(scene, tmp_path):
 
 def test_scene_text_edit_replaces_and_inserts():
     """The optimised scene keeps the file's text: values replaced in place (vector components
-    too), absent keys inserted, the belt's other installation key commented out."""
+    too), absent keys inserted, the belt's other installation key commented out; the text reads
+    back to the optimised scene bit for bit, and a value off by one part in 1e15 is caught."""
     text = (REPO / "scenes" / "two_pulley_T200.toml").read_text()
     sc = loads_scene(text)
     values = {"pulley.alternator.center.x": 0.25, "belt.length": 1.74, "pulley.crank.bearing_damping": 0.0}
     new = optimize.edit_scene_text(text, sc, values)
-    optimize._verify_scene_text(new, sc, values)
+    optimize._verify_scene_text(new, sc, values)  # read back bit for bit
+    with pytest.raises(optimize.OptimizeError, match="differs from the optimised scene at pulleys"):
+        optimize._verify_scene_text(new, sc, dict(values, **{"pulley.alternator.center.x": 0.25 + 1e-15}))
     out = loads_scene(new)
     assert float(parameters.get_value(out, "pulley.alternator.center.x")) == 0.25
     assert float(out.belt.length) == 1.74 and out.belt.static_tension is None

@@ -3,7 +3,6 @@ layout kept), or, where that text cannot be edited, the whole scene written anew
 
 from __future__ import annotations
 
-import math
 import re
 import tomllib
 
@@ -12,7 +11,7 @@ import numpy as np
 from beltjax import parameters
 from beltjax import textfile
 from beltjax.scene import Scene, SceneError, loads_scene
-from beltjax.scene.write import dumps_scene
+from beltjax.scene.write import dumps_scene, first_difference
 from beltjax.optimize.problem import OptimizeError
 
 
@@ -102,16 +101,16 @@ def edit_scene_text(text: str, scene: Scene, values: dict) -> str:
 
 
 def _verify_scene_text(text: str, original: Scene, values: dict) -> None:
-    """Raise OptimizeError unless ``text`` parses to ``original`` with exactly ``values`` changed."""
+    """Raise OptimizeError unless ``text`` parses to ``original`` with exactly ``values`` changed
+    (bit for bit: :func:`beltjax.scene.write.first_difference`)."""
     try:
         new = loads_scene(text, source="optimized_scene.toml")
     except SceneError as exc:
         raise OptimizeError(f"the optimised scene does not parse: {exc}", "optimized_scene.toml") from None
-    expected = parameters.set_values(original, values)
-    for p in parameters.paths(original):
-        a, b = float(parameters.get_value(new, p)), float(parameters.get_value(expected, p))
-        if not ((math.isnan(a) and math.isnan(b)) or abs(a - b) <= 1e-12 * max(1.0, abs(b))):
-            raise OptimizeError(f"the optimised scene file has {p} = {a!r}, expected {b!r}", "optimized_scene.toml")
+    where = first_difference(new, parameters.set_values(original, values))
+    if where is not None:
+        raise OptimizeError(f"the optimised scene file differs from the optimised scene at {where}",
+                            "optimized_scene.toml")
 
 
 def optimised_scene_text(original: Scene, values: dict, header: str, source) -> tuple[str, str | None]:
