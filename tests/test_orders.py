@@ -231,6 +231,47 @@ def test_shooting_without_gradients_stops_on_newtons_prediction():
         jax.grad(lambda c: orders.steady_case(sc, {path: c}, 600.0, 1.0, lean_settings)["arm_angle_deg:p2p"])(c0)
 
 
+def test_step_budget_ends_a_solve_per_case(monkeypatch):
+    """StepBudget, vmapped with a budget per case: a case whose budget (5 steps) runs out ends with
+    max_steps_reached after exactly 5 steps; one with room ends as the bare controller does (the
+    same steps, the state to 1e-12).  In periodic_orbit, a Newton iterate whose cycle takes more
+    than BUDGET_FACTOR times the first cycle's steps is given up (not ok, so the speed settles)
+    after that cycle (with the shipped factor the same Duffing orbit converges: the test above)."""
+    import diffrax
+
+    from beltjax.orders import periodic_orbit, shooting
+    from beltjax.orders.shooting import StepBudget, held
+
+    W = 2 * np.pi / 0.1
+
+    def field(F):
+        return lambda t, y, args: jnp.stack([y[1], -(2 * np.pi * 9.0) ** 2 * y[0] * (1 + 4.0 * y[0] ** 2)
+                                             - 2 * 0.05 * 2 * np.pi * 9 * y[1] + F * jnp.cos(W * t)])
+
+    ctrl = diffrax.PIDController(rtol=1e-10, atol=1e-12)
+
+    def solve(budget):
+        sol = diffrax.diffeqsolve(diffrax.ODETerm(field(1000.0)), diffrax.Dopri8(), 0.0, 0.1, 0.1 / 64,
+                                  jnp.zeros(2), stepsize_controller=StepBudget(ctrl, budget), throw=False)
+        return sol.ys[-1], sol.stats["num_steps"], sol.result == diffrax.RESULTS.successful
+
+    y, steps, good = jax.jit(jax.vmap(solve))(jnp.array([5, 100_000]))
+    bare = diffrax.diffeqsolve(diffrax.ODETerm(field(1000.0)), diffrax.Dopri8(), 0.0, 0.1, 0.1 / 64, jnp.zeros(2),
+                               stepsize_controller=ctrl)
+    assert list(np.asarray(steps)) == [5, int(bare.stats["num_steps"])] and list(np.asarray(good)) == [False, True]
+    assert np.allclose(np.asarray(y[1]), np.asarray(bare.ys[-1]), rtol=1e-12, atol=0)  # (vmapped: other fusion)
+
+    # the shipped factor lets this orbit converge in several iterations (the test above); a factor
+    # of 0.5 puts any cycle after the first over budget (read when traced: a fresh program)
+    monkeypatch.setattr(shooting, "BUDGET_FACTOR", 0.5)
+    ts = 0.1 * jnp.arange(16) / 16
+    info = jax.jit(lambda: periodic_orbit(field(1000.0), field(held(1000.0)), jnp.zeros(2), 0.1, ts,
+                                          diffrax.Tsit5(), ctrl, 100_000, 1, False)[1])()
+    assert list(np.asarray(info["cycle_steps"][2:])) == [0] * (shooting.MAX_ITERATIONS - 2)
+    assert 0.5 * float(info["cycle_steps"][0]) <= float(info["cycle_steps"][1])  # ended at the budget
+    assert float(info["ok"]) == 0.0 and float(info["iterations"]) == 2.0
+
+
 def test_speeds_the_shooting_gives_up_settle(monkeypatch):
     """response_over_speed's passes (with the compiled batch replaced by a stand-in that records
     its calls): a speed whose shooting found no attracting cycle runs the settling transient for
@@ -252,9 +293,10 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
             else:  # the settling transient: 600 rpm settles only after the longer run
                 settling, mult = np.where(float(np.asarray(settle)[0]) > 1.0, 1e-4, 0.5) + 0 * rpm, np.nan + 0 * rpm
             one = np.ones_like(rpm)
+            cycles = np.outer(one, [5.0, 6.0, 7.0, 0, 0, 0, 0, 0] if settings.method == "shooting" else np.zeros(8))
             return {"settling": settling, "solver_ok": one, "converged": one, "supercritical": 1.0 * (rpm == 900.0),
                     "min_span_force_N": 100 * one, "steps": 10 * one, "t_end_s": 0.1 * one,
-                    "shooting_iterations": 3 * one, "floquet_multiplier": mult, "arm_angle_deg:p2p": rpm / 1000,
+                    "shooting_iterations": 3 * one, "shooting_cycle_steps": cycles, "floquet_multiplier": mult, "arm_angle_deg:p2p": rpm / 1000,
                     "hub_forces_N": np.zeros((len(rpm), 4, 3, 2)), "t_s": np.zeros((len(rpm), 4)),
                     "max_friction_needed": np.zeros((len(rpm), 3))}
         return fn
@@ -270,6 +312,7 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
     assert calls[1][2] == [600.0] * 4 and calls[2][2] == [600.0]  # only the speed given up (padded to the chunk)
     assert res.meta["methods"] == ["shooting", f"settle {orders.run.RETRY_FACTOR:g} s", "shooting", "shooting"]
     assert res.meta["floquet_multipliers"] == [0.5, 1.2, 0.5, 1.2] and res.meta["rerun_speeds"] == 1
+    assert res.meta["shooting_cycle_steps"][1] == [5, 6, 7, 0, 0, 0, 0, 0]  # the shooting's, kept: why it gave up
     assert res.status == ["ok", "ok", "ok", "supercritical"] and res.settling[1] == 1e-4
 
 

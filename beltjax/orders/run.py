@@ -288,7 +288,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
             again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s,
                         retry.size if host is not None else chunk or default_chunk(retry.size, method))  # host: 1 batch
         for k in out:
-            if k not in ("shooting_iterations", "floquet_multiplier"):  # (why the shooting gave it up)
+            if k not in ("shooting_iterations", "shooting_cycle_steps", "floquet_multiplier"):  # (why it gave up)
                 out[k][retry] = again[k]
     wall = time.perf_counter() - t0
     cols = _columns(scene)
@@ -309,6 +309,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         fidelity=scene.model.fidelity, drive_pulley=order[drive.drive_pulley(scene)], settle_s=settle_s,
         settle_tol=settle_tol, rerun_speeds=int(rerun.sum()), method=settings.method, methods=used,
         shooting_iterations=out["shooting_iterations"].astype(int).tolist(),
+        shooting_cycle_steps=out["shooting_cycle_steps"].astype(int).tolist(),
         floquet_multipliers=[None if not np.isfinite(m) else float(m) for m in out["floquet_multiplier"]],
         revolutions_per_cycle=settings.revolutions,
         samples_per_cycle=settings.samples, rtol=settings.rtol, atol=settings.atol, solver=settings.solver,

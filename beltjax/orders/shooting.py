@@ -78,6 +78,13 @@ MAX_STEP = 1.0
 #: most steps of one cycle's integration (a cycle of the eight-pulley drive with a dry-friction
 #: tensioner takes 700-7,000; more means the iterate has left the drive's cycle: the case settles)
 MAX_CYCLE_STEPS = 50_000
+#: a Newton iterate's cycle may take at most this many times the steps of the first cycle (from
+#: the linearised start); more and the iterate has left the region where Newton converges: the
+#: case settles.  On the eight-pulley drive with the friction tensioner (1000 speeds, 600-6000
+#: rpm) a converging iterate's cycle took at most 1.48x the first's; in the slack-span band the
+#: diverging ones grew to 3-7x and twice to the 50,000-step cap, which a lock-step batch of 1000
+#: speeds on a GPU waited for (benchmarks/bench_lockstep.py, benchmarks/README.md section 5g)
+BUDGET_FACTOR = 4
 #: squarings of P in the spectral-radius estimate (P^(2^SQUARINGS))
 SQUARINGS = 20
 #: without gradients: a Newton step of at most this reach (-) from an iterate whose residual is at
@@ -109,6 +116,32 @@ def relative_change(dy, samples, n: int, rtol: float = 0.0, atol: float = 0.0, f
         return jnp.max(jnp.abs(dy[..., sl])) / jnp.maximum(span, least)
 
     return jnp.maximum(part(slice(0, n)), part(slice(n, 2 * n)))
+
+
+class StepBudget(diffrax.AbstractStepSizeController):
+    """``controller`` that ends the solve (diffrax's ``max_steps_reached``) once ``budget`` steps,
+    accepted or rejected, have been tried: a step cap that may be a traced value (diffrax's
+    ``max_steps`` is static), per case in a vmapped batch."""
+
+    controller: diffrax.AbstractStepSizeController
+    budget: jax.Array
+
+    def wrap(self, direction):
+        return StepBudget(self.controller.wrap(direction), self.budget)
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        tnext, state = self.controller.init(terms, t0, t1, y0, dt0, args, func, error_order)
+        return tnext, (state, jnp.asarray(0))
+
+    def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
+        state, tried = controller_state
+        keep, t_next, t_after, jump, state, result = self.controller.adapt_step_size(
+            t0, t1, y0, y1_candidate, args, y_error, error_order, state)
+        tried = tried + 1
+        over = tried >= self.budget
+        result = diffrax.RESULTS.where(over & (result == diffrax.RESULTS.successful),
+                                       diffrax.RESULTS.max_steps_reached, result)
+        return keep, t_next, t_after, jump, (state, tried), result
 
 
 def spectral_radius(P):
@@ -159,6 +192,7 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
 
     Returns (y* (N,), info) with info: ``iterations``, ``residual`` (:func:`change_over_cycle` of
     the last iterate), ``multiplier`` (largest Floquet multiplier, -), ``steps`` (all cycles),
+    ``cycle_steps`` (:data:`MAX_ITERATIONS`,) each Newton cycle's steps (0 after the last),
     ``ok`` (1.0 / 0.0: converged, to :data:`TOLERANCE` or to the integration's own error
     (:data:`NOISE_STOP`), finite and attracting), ``predicted`` (1.0 where the loop stopped on
     Newton's prediction: the caller checks the next cycle against :data:`PREDICT_CHECK`) as floats.
@@ -178,10 +212,10 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
                                  dtmax=None if controller.dtmax is None else jax.lax.stop_gradient(controller.dtmax),
                                  norm=error_norm)
 
-    def cycle(y):
+    def cycle(y, budget):
         sol = diffrax.diffeqsolve(diffrax.ODETerm(variational), solver, t0=0.0, t1=T, dt0=T / 64,
                                   y0=(y, eye), saveat=diffrax.SaveAt(ts=t_samples, t1=True, fn=lambda t, s, a: s),
-                                  stepsize_controller=ctrl, max_steps=max_steps, throw=False)
+                                  stepsize_controller=StepBudget(ctrl, budget), max_steps=max_steps, throw=False)
         ys, Ys = sol.ys
         return ys[:-1], ys[-1], Ys[-1], sol.stats["num_steps"], sol.result == diffrax.RESULTS.successful
 
@@ -189,7 +223,8 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         return (c["k"] < MAX_ITERATIONS) & ~c["done"] & c["finite"]
 
     def body(c):
-        samples, yT, P, steps, good = cycle(c["y"])
+        budget = jnp.where(c["k"] == 0, max_steps, BUDGET_FACTOR * c["first"])  # (BUDGET_FACTOR)
+        samples, yT, P, steps, good = cycle(c["y"], budget)
         r = yT - c["y"]
         res = change_over_cycle(c["y"][: 2 * n], yT[: 2 * n], samples[:, : 2 * n], n, rtol, atol)
         at_noise = jnp.all(jnp.abs(r) <= NOISE_STOP * (atol + rtol * jnp.abs(yT)))
@@ -210,10 +245,11 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
             y = jnp.where(finite & (~done | (reach <= PREDICT_REACH)), c["y"] - step, c["y"])
             done = done | predicted
         return dict(y=y, k=c["k"] + 1, residual=jnp.where(finite, res, jnp.inf), P=jnp.where(finite, P, c["P"]),
-                    steps=c["steps"] + steps, finite=finite, done=done & finite, predicted=predicted & finite)
+                    steps=c["steps"] + steps, first=jnp.where(c["k"] == 0, steps, c["first"]),
+                    cycle_steps=c["cycle_steps"].at[c["k"]].set(steps), finite=finite, done=done & finite, predicted=predicted & finite)
 
     init = dict(y=jax.lax.stop_gradient(y0), k=jnp.asarray(0), residual=jnp.asarray(jnp.inf, y0.dtype), P=eye,
-                steps=jnp.asarray(0), finite=jnp.asarray(True), done=jnp.asarray(False), predicted=jnp.asarray(False))
+                steps=jnp.asarray(0), first=jnp.asarray(0), cycle_steps=jnp.zeros(MAX_ITERATIONS, int), finite=jnp.asarray(True), done=jnp.asarray(False), predicted=jnp.asarray(False))
     c = jax.lax.while_loop(cond, body, init)
     mult = spectral_radius(c["P"])
     if gradients:  # the implicit function theorem's step (module docstring): Phi integrated with gradients, P held
@@ -227,5 +263,6 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         y_star, steps, usable = c["y"], c["steps"], c["done"]
     ok = usable & (mult < 1.0) & jnp.all(jnp.isfinite(y_star))
     info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult, steps=steps.astype(y0.dtype),
-                ok=ok.astype(y0.dtype), predicted=c["predicted"].astype(y0.dtype))
+                ok=ok.astype(y0.dtype), predicted=c["predicted"].astype(y0.dtype),
+                cycle_steps=c["cycle_steps"].astype(y0.dtype))
     return y_star, info

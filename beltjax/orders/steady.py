@@ -165,8 +165,9 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     ``hub_forces_N`` (K, bearings, 2): the hub force vectors over the cycle (N); ``t_s`` (K,)
     the recorded times (s); ``settling`` (-): :func:`_settling`, or with shooting the recorded
     cycle's own change (:func:`beltjax.orders.shooting.change_over_cycle`; inf where the shooting
-    did not converge to an attracting cycle); ``shooting_iterations`` and ``floquet_multiplier``
-    (the cycle's largest, -; 0 and nan for a settling transient); ``converged`` (statics) and
+    did not converge to an attracting cycle); ``shooting_iterations``, ``shooting_cycle_steps``
+    (each Newton cycle's steps) and ``floquet_multiplier`` (the cycle's largest, -; 0, zeros and
+    nan for a settling transient); ``converged`` (statics) and
     ``solver_ok`` (the transient reached the end) and ``supercritical`` (a span past its critical
     speed at the operating point: :mod:`beltjax.critical`) as 1.0 / 0.0; ``min_span_force_N``: the
     least force of a span on its pulleys over the cycle (N; with ``transport`` its tension less
@@ -245,6 +246,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         confirmed = (shot["predicted"] < 0.5) | (change <= shooting.PREDICT_CHECK * (1.0 - shot["multiplier"]))
         out["settling"] = jnp.where((shot["ok"] > 0.5) & confirmed, change, jnp.inf)
         out["shooting_iterations"], out["floquet_multiplier"] = shot["iterations"], shot["multiplier"]
+        out["shooting_cycle_steps"] = shot["cycle_steps"]
         steps = steps + shot["steps"]
     else:
         creeping = None
@@ -252,6 +254,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
             creeping = jnp.zeros(n).at[: belt_slip.rotations(sc)].set(1.0)
         out["settling"] = _settling(ys[: K + 1, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
         out["shooting_iterations"], out["floquet_multiplier"] = jnp.asarray(0.0), jnp.asarray(jnp.nan)
+        out["shooting_cycle_steps"] = jnp.zeros(shooting.MAX_ITERATIONS)
     out["converged"] = conv
     out["supercritical"] = critical.supercritical(sc, qi, inst, v).astype(jnp.float64)
     out["solver_ok"] = (sol.result == diffrax.RESULTS.successful).astype(jnp.float64)
