@@ -1,10 +1,12 @@
 """What a lock-step batch of shootings costs: the speeds of ``beltjax orders`` run one at a time,
 each Newton cycle's steps recorded, and the cost of running them all in one vmapped batch (as on
 a GPU, where the batch advances in lock-step) counted in cycle steps: each Newton iteration of
-the batch lasts as long as its slowest speed's cycle, and a speed that has finished repeats its
-last cycle until the whole batch has.  With the shooting's step budget
-(``beltjax.orders.shooting.BUDGET_FACTOR``) and without it (the speeds where the budget ended a
-cycle run again with it lifted; the others are unchanged by it).
+the batch lasts as long as its slowest running speed's cycle.  Three rows: without the
+shooting's step budget (``beltjax.orders.shooting.BUDGET_FACTOR``; the speeds where the budget
+ended a cycle run again with it lifted, the others are unchanged by it) and with it, a speed
+that has finished repeating its last cycle until the whole batch has (the code of 95398cd); as
+shipped, with the budget and a finished speed integrating a vanishing interval
+(``shooting.IDLE_FRACTION``).
 
 Run: ``python benchmarks/bench_lockstep.py`` (the eight-pulley drive with the dry-friction
 tensioner, 1000 speeds 600-6000 rpm, about 8 min on a 2-core CPU); ``--speeds N``, ``--scene``;
@@ -30,13 +32,15 @@ from beltjax.scene import load_scene
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def lockstep_steps(cycles: list[list[int]]) -> tuple[int, list[int]]:
+def lockstep_steps(cycles: list[list[int]], idle: bool) -> tuple[int, list[int]]:
     """(total, per iteration) of a lock-step batch's cycle steps: iteration k lasts the longest
-    cycle k of any speed, a finished speed repeating its last cycle."""
+    cycle k of any speed still iterating; a finished speed repeats its last cycle (``idle``
+    False: the code before the idling, 95398cd) or integrates a vanishing interval (True)."""
     cycles = [c for c in cycles if c]
     K = max(len(c) for c in cycles)
-    per = [max(c[min(k, len(c) - 1)] for c in cycles) for k in range(K)]
-    return sum(per), per
+    if idle:
+        return sum(per := [max(c[k] for c in cycles if k < len(c)) for k in range(K)]), per
+    return sum(per := [max(c[min(k, len(c) - 1)] for c in cycles) for k in range(K)]), per
 
 
 def cycles_of(r) -> list[list[int]]:
@@ -75,12 +79,14 @@ def main():
             without[i] = c
     shooting.BUDGET_FACTOR = factor
     rows = {}
-    for name, cycles in (("without the budget", without), ("with the budget", with_budget)):
-        total, per = lockstep_steps(cycles)
+    for name, cycles, idle in (("no budget, finished speeds repeat their cycle", without, False),
+                               ("budget, finished speeds repeat their cycle", with_budget, False),
+                               ("budget, finished speeds idle (as shipped)", with_budget, True)):
+        total, per = lockstep_steps(cycles, idle)
         worst = int(np.argmax([sum(c) for c in cycles]))
         rows[name] = dict(lockstep_cycle_steps=total, per_iteration=per, one_by_one_cycle_steps=sum(map(sum, cycles)),
                           worst_speed_rpm=float(rpm[worst]), worst_speed_cycles=cycles[worst])
-        print(f"{name:<20} lock-step: {total:7d} cycle steps over {len(per)} iterations {per}; one by one "
+        print(f"{name:<47} lock-step: {total:7d} cycle steps over {len(per)} iterations {per}; one by one "
               f"{rows[name]['one_by_one_cycle_steps']} (the most, {sum(cycles[worst])}, at {rpm[worst]:.1f} rpm)")
     shot = [c for c, m in zip(with_budget, r.meta["methods"]) if m == "shooting" and len(c) >= 2]
     ratio = max(max(c[1:]) / c[0] for c in shot) if shot else float("nan")

@@ -44,13 +44,16 @@ def batched():
 def test_batched_equals_one_by_one(batched):
     """One vmapped batch of the three speeds gives what each speed gives alone (the fixture: one at
     a time, a CPU's default for the shooting): adaptive steps and Newton iterations per case, not
-    the batch's lock-step.  Not to the last bit: a vmapped kernel rounds differently, so an
+    the batch's lock-step (a case that has converged idles while the others iterate on).  Not to
+    the last bit: a vmapped kernel rounds differently, so an
     adaptive step can be accepted in one run and rejected in the other (at 600 rpm 607 steps one by
     one and 604 batched with jax 0.10.2); two step sequences of one solution agree to the
     integration's tolerance, here 10x its rtol (1e-7) of each statistic (seen: 1.04e-7)."""
     together = orders.response_over_speed(loads_scene(SCENE), SPEEDS, settle_s=1.0, chunk=3)
     assert batched.status == together.status == ["ok"] * 3
     assert batched.meta["shooting_iterations"] == together.meta["shooting_iterations"]
+    for a, b in zip(batched.meta["shooting_cycle_steps"], together.meta["shooting_cycle_steps"]):
+        assert np.all(np.abs(np.subtract(a, b)) <= 0.02 * np.asarray(a)), (a, b)  # each case's own cycles
     assert np.all(np.abs(np.subtract(batched.meta["steps"], together.meta["steps"])) <= 0.02 * np.asarray(batched.meta["steps"]))
     tol = 10.0 * batched.meta["rtol"]
     for k, v in batched.stats.items():
@@ -262,10 +265,25 @@ def test_step_budget_ends_a_solve_per_case(monkeypatch):
     assert list(np.asarray(steps)) == [5, int(bare.stats["num_steps"])] and list(np.asarray(good)) == [False, True]
     assert np.allclose(np.asarray(y[1]), np.asarray(bare.ys[-1]), rtol=1e-12, atol=0)  # (vmapped: other fusion)
 
+    ts = 0.1 * jnp.arange(16) / 16
+
+    def lean(F):
+        return periodic_orbit(field(F), field(held(F)), jnp.zeros(2), 0.1, ts, diffrax.Tsit5(), ctrl, 100_000, 1,
+                              False)
+
+    # vmapped, a case that converges sooner idles while the other iterates on: each gives what it
+    # gives alone (its iterations and each cycle's steps; its state to the integration's tolerance)
+    (yb, ib), one = jax.jit(jax.vmap(lean))(jnp.array([10.0, 1000.0])), jax.jit(lean)
+    for j, F in enumerate([10.0, 1000.0]):
+        y1, i1 = one(F)
+        assert float(ib["ok"][j]) == float(i1["ok"]) == 1.0
+        assert np.array_equal(np.asarray(ib["cycle_steps"][j]), np.asarray(i1["cycle_steps"]))
+        assert np.allclose(np.asarray(yb[j]), np.asarray(y1), rtol=1e-8, atol=1e-12)
+    assert float(ib["iterations"][0]) < float(ib["iterations"][1])  # (the first did idle)
+
     # the shipped factor lets this orbit converge in several iterations (the test above); a factor
     # of 0.5 puts any cycle after the first over budget (read when traced: a fresh program)
     monkeypatch.setattr(shooting, "BUDGET_FACTOR", 0.5)
-    ts = 0.1 * jnp.arange(16) / 16
     info = jax.jit(lambda: periodic_orbit(field(1000.0), field(held(1000.0)), jnp.zeros(2), 0.1, ts,
                                           diffrax.Tsit5(), ctrl, 100_000, 1, False)[1])()
     assert list(np.asarray(info["cycle_steps"][2:])) == [0] * (shooting.MAX_ITERATIONS - 2)

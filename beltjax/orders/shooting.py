@@ -85,6 +85,9 @@ MAX_CYCLE_STEPS = 50_000
 #: diverging ones grew to 3-7x and twice to the 50,000-step cap, which a lock-step batch of 1000
 #: speeds on a GPU waited for (benchmarks/bench_lockstep.py, benchmarks/README.md section 5g)
 BUDGET_FACTOR = 4
+#: the part of a cycle that a case whose Newton loop has ended integrates while a vmapped batch
+#: runs on (its result is discarded)
+IDLE_FRACTION = 1e-9
 #: squarings of P in the spectral-radius estimate (P^(2^SQUARINGS))
 SQUARINGS = 20
 #: without gradients: a Newton step of at most this reach (-) from an iterate whose residual is at
@@ -212,9 +215,13 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
                                  dtmax=None if controller.dtmax is None else jax.lax.stop_gradient(controller.dtmax),
                                  norm=error_norm)
 
-    def cycle(y, budget):
-        sol = diffrax.diffeqsolve(diffrax.ODETerm(variational), solver, t0=0.0, t1=T, dt0=T / 64,
-                                  y0=(y, eye), saveat=diffrax.SaveAt(ts=t_samples, t1=True, fn=lambda t, s, a: s),
+    def cycle(y, budget, active):
+        # a case whose loop has ended (vmapped: the body runs for the whole batch, its result
+        # discarded) integrates a vanishing interval, so that a lock-step batch's iteration lasts
+        # as long as its slowest *running* case (bench_lockstep.py: 8,274 -> 6,492 cycle steps)
+        s = jnp.where(active, 1.0, IDLE_FRACTION)
+        sol = diffrax.diffeqsolve(diffrax.ODETerm(variational), solver, t0=0.0, t1=T * s, dt0=T * s / 64,
+                                  y0=(y, eye), saveat=diffrax.SaveAt(ts=t_samples * s, t1=True, fn=lambda t, s, a: s),
                                   stepsize_controller=StepBudget(ctrl, budget), max_steps=max_steps, throw=False)
         ys, Ys = sol.ys
         return ys[:-1], ys[-1], Ys[-1], sol.stats["num_steps"], sol.result == diffrax.RESULTS.successful
@@ -224,7 +231,7 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
 
     def body(c):
         budget = jnp.where(c["k"] == 0, max_steps, BUDGET_FACTOR * c["first"])  # (BUDGET_FACTOR)
-        samples, yT, P, steps, good = cycle(c["y"], budget)
+        samples, yT, P, steps, good = cycle(c["y"], budget, cond(c))
         r = yT - c["y"]
         res = change_over_cycle(c["y"][: 2 * n], yT[: 2 * n], samples[:, : 2 * n], n, rtol, atol)
         at_noise = jnp.all(jnp.abs(r) <= NOISE_STOP * (atol + rtol * jnp.abs(yT)))
