@@ -18,10 +18,11 @@ converges in 2-5 iterations, where a settling transient needs about a second of 
 A fixed point is only the response an engine shows when it attracts: the largest Floquet
 multiplier (the spectral radius of P, estimated as ||P^m||^(1/m), m = 2^20, by repeated
 squaring, as ``jnp.linalg.eigvals`` has no accelerator kernel) must be below 1.  A case that does
-not converge in :data:`MAX_ITERATIONS`, gives a non-finite state or an unstable cycle is left to
-the settling transient (:func:`beltjax.orders.run.response_over_speed` re-runs it that way).  Not
-for states that drift (``belt_slip``'s creeping pulleys and slip states: no fixed point): those
-settle.
+not converge in :data:`MAX_ITERATIONS`, gives a non-finite state or an unstable cycle, or whose
+iterate's cycle takes more than :data:`BUDGET_FACTOR` times the steps of its first (the iterate
+has left the cycle; :class:`StepBudget`) is left to the settling transient
+(:func:`beltjax.orders.run.response_over_speed` re-runs it that way).  Not for states that drift
+(``belt_slip``'s creeping pulleys and slip states: no fixed point): those settle.
 
 Gradients: the Newton loop runs on stopped gradients; the implicit function theorem enters
 through one more Newton step, y* = y - (P - I)^-1 (Phi(y; p) - y), with the map Phi integrated
@@ -253,10 +254,12 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
             done = done | predicted
         return dict(y=y, k=c["k"] + 1, residual=jnp.where(finite, res, jnp.inf), P=jnp.where(finite, P, c["P"]),
                     steps=c["steps"] + steps, first=jnp.where(c["k"] == 0, steps, c["first"]),
-                    cycle_steps=c["cycle_steps"].at[c["k"]].set(steps), finite=finite, done=done & finite, predicted=predicted & finite)
+                    cycle_steps=c["cycle_steps"].at[c["k"]].set(steps), finite=finite, done=done & finite,
+                    predicted=predicted & finite)
 
     init = dict(y=jax.lax.stop_gradient(y0), k=jnp.asarray(0), residual=jnp.asarray(jnp.inf, y0.dtype), P=eye,
-                steps=jnp.asarray(0), first=jnp.asarray(0), cycle_steps=jnp.zeros(MAX_ITERATIONS, int), finite=jnp.asarray(True), done=jnp.asarray(False), predicted=jnp.asarray(False))
+                steps=jnp.asarray(0), first=jnp.asarray(0), cycle_steps=jnp.zeros(MAX_ITERATIONS, int),
+                finite=jnp.asarray(True), done=jnp.asarray(False), predicted=jnp.asarray(False))
     c = jax.lax.while_loop(cond, body, init)
     mult = spectral_radius(c["P"])
     if gradients:  # the implicit function theorem's step (module docstring): Phi integrated with gradients, P held
