@@ -231,7 +231,7 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         return (c["k"] < MAX_ITERATIONS) & ~c["done"] & c["finite"]
 
     def body(c):
-        budget = jnp.where(c["k"] == 0, max_steps, BUDGET_FACTOR * c["first"])  # (BUDGET_FACTOR)
+        budget = jnp.where(c["k"] == 0, max_steps, BUDGET_FACTOR * c["cycle_steps"][0])  # (BUDGET_FACTOR)
         samples, yT, P, steps, good = cycle(c["y"], budget, cond(c))
         r = yT - c["y"]
         res = change_over_cycle(c["y"][: 2 * n], yT[: 2 * n], samples[:, : 2 * n], n, rtol, atol)
@@ -253,12 +253,11 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
             y = jnp.where(finite & (~done | (reach <= PREDICT_REACH)), c["y"] - step, c["y"])
             done = done | predicted
         return dict(y=y, k=c["k"] + 1, residual=jnp.where(finite, res, jnp.inf), P=jnp.where(finite, P, c["P"]),
-                    steps=c["steps"] + steps, first=jnp.where(c["k"] == 0, steps, c["first"]),
-                    cycle_steps=c["cycle_steps"].at[c["k"]].set(steps), finite=finite, done=done & finite,
+                    steps=c["steps"] + steps, cycle_steps=c["cycle_steps"].at[c["k"]].set(steps), finite=finite, done=done & finite,
                     predicted=predicted & finite)
 
     init = dict(y=jax.lax.stop_gradient(y0), k=jnp.asarray(0), residual=jnp.asarray(jnp.inf, y0.dtype), P=eye,
-                steps=jnp.asarray(0), first=jnp.asarray(0), cycle_steps=jnp.zeros(MAX_ITERATIONS, int),
+                steps=jnp.asarray(0), cycle_steps=jnp.zeros(MAX_ITERATIONS, int),
                 finite=jnp.asarray(True), done=jnp.asarray(False), predicted=jnp.asarray(False))
     c = jax.lax.while_loop(cond, body, init)
     mult = spectral_radius(c["P"])
