@@ -48,7 +48,7 @@ def cycles_of(r) -> list[list[int]]:
     return [[int(s) for s in c[:it]] for c, it in zip(r.meta["shooting_cycle_steps"], r.meta["shooting_iterations"])]
 
 
-def run(sc, rpm) -> list[list[int]]:
+def run(sc, rpm) -> tuple[list[list[int]], orders.OrdersResult]:
     t0 = time.perf_counter()
     r = orders.response_over_speed(sc, rpm, chunk=1, settings=orders.Settings(method="shooting"),
                                    progress=lambda d, n: d % 100 == 0 and print(f"    {d}/{n} speeds, "
@@ -92,11 +92,12 @@ def main():
     ratio = max(max(c[1:]) / c[0] for c in shot) if shot else float("nan")
     print(f"where the shooting gave the result ({len(shot)} speeds with 2 or more cycles), a later cycle took at most "
           f"{ratio:.2f}x the steps of the first")
+    status = {s: r.status.count(s) for s in sorted(set(r.status))}
     print(f"the budget ({factor}x the first cycle) ended a cycle at {len(bound)} speeds: "
-          f"{', '.join(f'{rpm[i]:.2f}' for i in bound)} rpm; status {dict((s, r.status.count(s)) for s in sorted(set(r.status)))}")
+          f"{', '.join(f'{rpm[i]:.2f}' for i in bound)} rpm; status {status}")
     out = _common.save_json("lockstep", dict(machine=info, scene=args.scene, speeds=args.speeds, rpm=[600.0, 6000.0],
                                              budget_factor=factor, largest_later_to_first=ratio, budget_bound_rpm=[float(rpm[i]) for i in bound],
-                                             rows=rows, status={s: r.status.count(s) for s in set(r.status)}))
+                                             rows=rows, status=status))
     print(f"wrote {out}")
 
 
