@@ -540,6 +540,8 @@ def test_sweep_settling_passes_share_one_program(monkeypatch):
     assert methods == [("shooting", 0.05), ("settle", 0.05), ("settle", 0.05 * orders.run.RETRY_FACTOR)]
     assert passes[1][0] == passes[2][0] and passes[1][2] == passes[2][2]  # one program, one shape
     assert np.isfinite(res["response_settling"][0]) and np.isfinite(res["response_arm_p2p_deg"][0])  # its result
+    settled = res["response_settling"][0] <= orders.SETTLE_TOL  # (0.2 s need not settle it) and its status says so
+    assert list(res["status"]) == (["ok"] if settled else ["not_settled"])
 
 
 def test_gradient_over_speed_and_optimize_arm_motion():
