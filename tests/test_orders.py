@@ -438,6 +438,12 @@ def test_failed_speeds_are_blank_and_reported(tmp_path, batched):
         if k != "t_s":
             assert np.all(np.isnan(v[1:])) and np.array_equal(v[0], batched.stats[k][0], equal_nan=True), k
     assert np.array_equal(stats["t_s"], batched.stats["t_s"])
+    # one policy with the sweeps: a flag on a computed cycle keeps its numbers, an operating point
+    # past the critical speed leaves none (as a sweep's supercritical case)
+    stats = run.blank_failed(batched.stats, ["span_slack", "not_settled", "supercritical"])
+    for k, v in stats.items():
+        if k != "t_s":
+            assert np.array_equal(v[:2], batched.stats[k][:2], equal_nan=True) and np.all(np.isnan(v[2])), k
     res = copy.copy(batched)
     res.status = ["solver_failed"] * len(res.rpm)
     res.stats = run.blank_failed(batched.stats, res.status)

@@ -423,3 +423,24 @@ def test_summary_table_never_cuts_a_name():
     text = sweep.summary_table({name: None, "tension_a-b_N": None}, stats)
     assert name in text and "tension_a-b_N" in text
     assert len(text.splitlines()) == 3
+
+
+def test_flags_on_a_computed_cycle_keep_their_numbers():
+    """The one policy of sweeps and responses over speed (beltjax.orders.FLAGS_KEEPING_NUMBERS): a
+    span slack in the steady cycle, or a cycle not settled, keeps the case's numbers beside its
+    status (flagged) and out of the pooled statistics; the same status from the statics (a slack
+    span at the operating point) or a failed transient leaves NaN."""
+    from beltjax import orders
+    from beltjax.sweep import batch, tables
+
+    code = np.array([sweep.STATUS.index(s) for s in ("ok", "span_slack", "span_slack", "not_settled",
+                                                     "transient_failed")])
+    out = {"code": code, "flag_keeps": np.array([False, True, False, True, False]),
+           "response_arm_p2p_deg": np.array([1.0, 2.0, 3.0, 4.0, 5.0])}
+    res = batch._finish(out, np.zeros(5, int), np.array([]))
+    assert set(orders.FLAGS_KEEPING_NUMBERS) == {"span_slack", "not_settled"}
+    np.testing.assert_array_equal(res["response_arm_p2p_deg"], [1.0, 2.0, np.nan, 4.0, np.nan])
+    np.testing.assert_array_equal(res["flagged"], [False, True, False, True, False])
+    pooled = tables.pooled({"arm_p2p_deg": res["response_arm_p2p_deg"]}, res)["arm_p2p_deg"]
+    assert tables.statistics(pooled)["count"] == 1 and tables.statistics(pooled)["max"] == 1.0
+

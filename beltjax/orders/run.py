@@ -34,6 +34,11 @@ MIN_SAMPLES, MAX_SAMPLES = 16, 4096
 #: the status of a speed, worst first (span_slack: a span's force on the pulleys, its tension less
 #: rhoA c^2 lam with transport, fell to 0 or below in the cycle: the belt lifts off, no grip)
 STATUS = ("not_converged", "supercritical", "solver_failed", "span_slack", "not_settled", "ok")  # first cause first
+#: the statuses that flag a computed cycle, whose numbers are kept beside the flag (a span going slack
+#: in the cycle, a cycle not yet repeating); every other status but "ok" leaves no state to report
+#: (statics not converged, an operating point past a span's critical speed, a failed transient): its
+#: numbers are NaN.  The one policy of responses over speed and of sweeps (beltjax.sweep.batch).
+FLAGS_KEEPING_NUMBERS = ("span_slack", "not_settled")
 
 
 class OrdersError(BeltjaxError):
@@ -322,8 +327,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
 
 
 def blank_failed(stats: dict, status) -> dict:
-    """``stats`` with NaN at the speeds whose statics did not converge or whose transient failed
-    (their numbers describe no state; as a sweep's failed cases), the sample times kept."""
-    failed = np.isin(np.asarray(status), ("not_converged", "solver_failed"))
+    """``stats`` with NaN at the speeds whose status leaves no state to report (every status but
+    "ok" and :data:`FLAGS_KEEPING_NUMBERS`), the sample times kept."""
+    failed = ~np.isin(np.asarray(status), ("ok", *FLAGS_KEEPING_NUMBERS))
     return {k: v if k == "t_s" or not failed.any() else
             np.where(failed.reshape((-1,) + (1,) * (np.ndim(v) - 1)), np.nan, v) for k, v in stats.items()}

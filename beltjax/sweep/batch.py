@@ -145,11 +145,16 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
         res["response_rerun"] = needs_rerun(r)  # (the fallback's, popped by evaluate)
         conds += [r["solver_ok"] < 0.5, r["min_span_force_N"] <= 0.0, ~(r["settling"] <= SETTLE_TOL)]
         codes += [_CODE["transient_failed"], _CODE["span_slack"], _CODE["not_settled"]]
+        kept = [len(conds) - 2, len(conds) - 1]  # flags on the computed cycle: its numbers are kept
+    else:
+        kept = []
     skip = ("frequencies_hz", "campbell_hz", *sweep_modes.SHAPE_KEYS)
     finite = [jnp.all(jnp.isfinite(x)) for k, x in res.items() if k not in skip]
     conds += [~jnp.all(jnp.asarray([*finite, True])), ~stable]
     codes += [_CODE["non_finite"], _CODE["unstable"]]
     res["code"] = jnp.select(conds, [jnp.asarray(c) for c in codes], jnp.asarray(_CODE["ok"]))
+    # whether the status flags a computed cycle (beltjax.orders.FLAGS_KEEPING_NUMBERS; popped by _finish)
+    res["flag_keeps"] = jnp.select(conds, [jnp.asarray(i in kept) for i in range(len(conds))], jnp.asarray(False))
     return res
 
 def _case(scene: Scene, values: Mapping[str, jax.Array], rpm: jax.Array, opts: _Options, ref=None) -> dict:
@@ -310,7 +315,10 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     nominal's mode), ``stable``; campbell: ``campbell_rpm`` (S,), ``campbell_hz`` (n, S,
     modes), ``campbell_stable`` (n, S), ``campbell_mode_match`` (n,: the lowest MAC of a case's
     tracking); and the lists ``mode_labels``, ``campbell_mode_labels`` (None: not tracked).
-    Failed cases are NaN in every output (unstable ones in the frequencies only).
+    Failed cases are NaN in every output (unstable ones in the frequencies only); ``flagged``
+    (bool, n) marks the cases whose status flags a computed cycle (a span slack in the steady
+    cycle, a cycle not settled: :data:`beltjax.orders.FLAGS_KEEPING_NUMBERS`), which keep their
+    numbers beside the status, as in ``beltjax orders``.
     """
     outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     bad = [o for o in outputs if o not in OUTPUTS]
@@ -410,10 +418,13 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     return out
 
 def _finish(out: dict[str, np.ndarray], pre: np.ndarray, rpm: np.ndarray) -> dict[str, np.ndarray]:
-    """Status strings; NaN in every output of a failed case (frequencies only for unstable ones).
-    pre: (n,) codes of the checks before the computation (0: passed)."""
+    """Status strings; NaN in every output of a case whose status leaves no state to report
+    (frequencies only for unstable ones; a flag on a computed cycle keeps its numbers: the policy of
+    :data:`beltjax.orders.FLAGS_KEEPING_NUMBERS`).  pre: (n,) codes of the checks before the
+    computation (0: passed)."""
     code = np.where(pre != _CODE["ok"], pre, out.pop("code")).astype(int)
-    failed = (code != _CODE["ok"]) & (code != _CODE["unstable"])
+    keeps = np.asarray(out.pop("flag_keeps", False), bool) & (pre == _CODE["ok"]) & (code != _CODE["ok"])
+    failed = (code != _CODE["ok"]) & (code != _CODE["unstable"]) & ~keeps
     for k, v in out.items():
         if v.dtype.kind == "f":
             v[failed] = np.nan
@@ -425,4 +436,5 @@ def _finish(out: dict[str, np.ndarray], pre: np.ndarray, rpm: np.ndarray) -> dic
         out["campbell_rpm"] = rpm
     out["code"] = code
     out["status"] = np.asarray(STATUS, dtype=object)[code]
+    out["flagged"] = np.broadcast_to(keeps, code.shape).copy()  # a flag on a computed cycle, its numbers kept
     return out

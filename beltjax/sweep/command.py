@@ -83,7 +83,9 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
     print(f"{n} cases in {wall:.1f} s ({n / wall:.3g} cases/s"
           + (f"; {steady:.3g} cases/s after the first chunk, which compiles in {first[0]:.1f} s" if steady else "")
           + ")")
-    print(f"{data['ok']} ok, {data['failed']} failed, {data['unstable']} unstable")
+    print(f"{data['ok']} ok, {data['failed']} failed, {data['unstable']} unstable"
+          + (f", {data['flagged']} flagged (numbers kept in sweep.csv beside the status, left out of the "
+             "statistics)" if data["flagged"] else ""))
     for s, v in data["failures"].items():
         print(f"  {s}: {v['count']} cases ({v['reason']}); first: {', '.join(str(i) for i in v['cases'][:8])}")
     print(summary_table(cols, data["summary"], labels))
@@ -102,7 +104,7 @@ def run(scene: Scene, spec_path: str | os.PathLike, out: str | os.PathLike, back
     from beltjax.outputs import wrote
 
     wrote(files)  # printed here, or by the command line once the files are moved into --out
-    if data["ok"] + data["unstable"] == 0:
+    if data["ok"] + data["unstable"] + data["flagged"] == 0:
         print("beltjax: every case failed (see the status column of sweep.csv)", file=sys.stderr)
         return 1
     return 0

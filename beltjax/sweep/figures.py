@@ -12,7 +12,7 @@ import numpy as np
 from beltjax import drive, drive_modal, parameters
 from beltjax.scene import Scene
 from beltjax.sweep.spec import Spec
-from beltjax.sweep.tables import LEAD_COLUMNS, columns
+from beltjax.sweep.tables import LEAD_COLUMNS, columns, pooled
 
 
 def _flexible_columns(cols: Mapping[str, np.ndarray], k: int = 6) -> list[str]:
@@ -205,7 +205,7 @@ def plots(scene: Scene, spec: Spec, result: Mapping[str, np.ndarray], out: Path,
           labels: list[str] | None = None) -> list[Path]:
     """The sweep's figures in ``out``: outputs against the grid parameters, histograms of a
     random study, Campbell curves of every case (PNG paths written)."""
-    cols = columns(scene, result)
+    cols = pooled(columns(scene, result), result)  # the flagged cases' numbers are in sweep.csv, not pooled
     files: list[Path] = []
     if spec.grid:
         files += plot_grid(spec, cols, out, labels)

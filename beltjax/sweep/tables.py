@@ -69,6 +69,16 @@ def columns(scene: Scene, result: Mapping[str, np.ndarray]) -> dict[str, np.ndar
             cols["campbell_mode_match"] = result["campbell_mode_match"]
     return cols
 
+def pooled(cols: Mapping[str, np.ndarray], result: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``cols`` with NaN in the flagged cases' rows (``result["flagged"]``: their numbers are kept in
+    sweep.csv beside their status, but no statistic or figure pools them with the solved cases)."""
+    flagged = np.asarray(result.get("flagged", False), bool)
+    if not flagged.any():
+        return dict(cols)
+    return {k: np.where(flagged, np.nan, np.asarray(v, float)) if np.asarray(v).dtype.kind == "f" else v
+            for k, v in cols.items()}
+
+
 def statistics(x) -> dict[str, float | int | None]:
     """mean, std, min, max, p5, p50, p95 and count of the finite values of ``x``."""
     x = np.asarray(x, float)
@@ -149,6 +159,7 @@ def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: M
     cause, the nominal scene's modes and ``timing`` (wall time, cases per second...)."""
     cols = columns(scene, result)
     fails = failures(result)
+    flagged = np.asarray(result.get("flagged", np.zeros(len(result["status"]), bool)), bool)
     return {
         "scene": str(scene.source),
         "sweep_file": str(spec.source),
@@ -161,9 +172,10 @@ def report(scene: Scene, spec: Spec, values: Mapping[str, np.ndarray], result: M
         "columns": ["case", *values, *cols, "status"],
         "nominal_modes": None if nominal is None else {"labels": nominal[0], "frequencies_hz": nominal[1]},
         "frequency_columns": _columns_meaning(result),
-        "summary": {k: statistics(v) for k, v in cols.items() if k not in ("converged", "stable")},
+        "summary": {k: statistics(v) for k, v in pooled(cols, result).items() if k not in ("converged", "stable")},
         "ok": int(np.sum(result["status"] == "ok")),
-        "failed": int(sum(v["count"] for k, v in fails.items() if k != "unstable")),
+        "flagged": int(flagged.sum()),
+        "failed": int(sum(v["count"] for k, v in fails.items() if k != "unstable")) - int(flagged.sum()),
         "unstable": fails.get("unstable", {}).get("count", 0),
         "failures": fails,
         "slipping": slipping(cols),
