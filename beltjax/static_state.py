@@ -218,6 +218,11 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
         w_all = couplings.windups(phis, psi, scene)
         for j, d in enumerate(scene.decouplers):
             w = float(w_all[j])
+            if w < -1e-9:  # (rad) the rotor carried ahead by its load: the clutch would overrun
+                raise StaticsError(f"the mean load on {d.pulley!r} drives its decoupler's rotor ahead of the pulley "
+                                   f"(wind-up {math.degrees(w):.3g} deg): the clutch would overrun and the rotor "
+                                   "has no steady state; load a decoupled pulley against the belt's travel",
+                                   f"decoupler[{j}].pulley")
             res.decouplers[d.pulley] = {"windup_deg": math.degrees(w),
                                         "moment_Nm": float(couplings.decoupler_moment(w, d.stiffness))}
     return res

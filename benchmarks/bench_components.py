@@ -2,7 +2,11 @@
 with one component changed at a time.
 
 Run: ``python benchmarks/bench_components.py`` (about 3 min); writes
-``benchmarks/results/components.json``.
+``benchmarks/results/components.json``.  ``--accuracy`` (about 8 min) adds each component's row
+of the accuracy-time atlas: the same runs at rtol 1e-3, 1e-4, 1e-6 and 1e-8 (atol 1e-3 rtol),
+each timed after its compilation (the least of three calls), with the error of the arm angle and the span tensions against
+rtol 1e-10 (max |x - x_ref| / peak-to-peak of x_ref over the second half of the run, the worst
+channel); ``results/components_accuracy.json``.
 
 Each variant runs 1 s of idle (Dopri8, rtol 1e-6, the default) twice: the first call compiles,
 the second is timed.  Variants: the scene as shipped (2nd and 4th crank orders, viscous
@@ -15,10 +19,14 @@ from __future__ import annotations
 
 import _common  # noqa: F401  (sets OPENBLAS_NUM_THREADS before numpy/jax)
 
+import argparse
+import dataclasses
 import json
 import re
 import time
 from pathlib import Path
+
+import numpy as np
 
 from beltjax import drive, transient
 from beltjax.scene import loads_scene
@@ -42,8 +50,63 @@ def variants() -> dict[str, str]:
     }
 
 
+#: the accuracy part's tolerances and its reference
+RTOLS, RTOL_REF = (1e-3, 1e-4, 1e-6, 1e-8), 1e-10
+#: timed calls per row after the compiling one (the least is kept: this machine's runs scatter 10-20 %)
+REPEATS = 3
+#: the channels whose error is taken
+ERROR_CHANNELS = ("arm_angle_deg", "span_tensions_N")
+
+
+def _at(sc, rtol):
+    return dataclasses.replace(sc, simulation=dataclasses.replace(sc.simulation, solver="dopri8", rtol=rtol,
+                                                                   atol=1e-3 * rtol))
+
+
+def _error(res, ref) -> float:
+    """Worst channel's max |x - x_ref| / ptp(x_ref) over the run's second half (the start's
+    transient left out: both runs start at the same state)."""
+    half = ref.t >= 0.5 * ref.t[-1]
+    errs = [float(np.max(np.abs(res.channels[k][half] - ref.channels[k][half]))
+                  / max(float(np.ptp(ref.channels[k][half])), 1e-300)) for k in ERROR_CHANNELS if k in ref.channels]
+    return max(errs)
+
+
+def accuracy(info) -> None:
+    """Each variant at RTOLS against RTOL_REF: steps, wall per simulated s after compilation, error."""
+    rows = []
+    print(f"{'variant':<50} {'rtol':>7} {'steps':>7} {'wall / sim. s':>14} {'vs real time':>13} {'error':>9}")
+    for name, text in variants().items():
+        sc = loads_scene(text)
+        ref = transient.simulate(_at(sc, RTOL_REF), T_END)
+        for rtol in RTOLS:
+            case = _at(sc, rtol)
+            transient.simulate(case, T_END)  # compiles
+            walls = []
+            for _ in range(REPEATS):
+                t0 = time.perf_counter()
+                res = transient.simulate(case, T_END)
+                walls.append(time.perf_counter() - t0)
+            wall = min(walls)
+            row = dict(variant=name, rtol=rtol, steps=int(res.meta["steps"]), wall_per_simulated_s=wall / T_END,
+                       real_time_factor=T_END / wall, error=_error(res, ref), reference_steps=int(ref.meta["steps"]))
+            rows.append(row)
+            print(f"{name:<50} {rtol:>7.0e} {row['steps']:>7} {wall / T_END:>13.3f}s {T_END / wall:>12.1f}x "
+                  f"{row['error']:>9.1e}", flush=True)
+    out = ROOT / "benchmarks" / "results" / "components_accuracy.json"
+    out.write_text(json.dumps(dict(machine=info, t_end_s=T_END, rtol_reference=RTOL_REF, channels=ERROR_CHANNELS,
+                                   rows=rows), indent=1))
+    print(f"wrote {out.relative_to(ROOT)}")
+
+
 def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--accuracy", action="store_true", help="the accuracy-time rows instead of the cost table")
+    args = ap.parse_args()
     info = _common.machine_info()
+    if args.accuracy:
+        print(_common.machine_line(info), flush=True)
+        return accuracy(info)
     print(_common.machine_line(info), flush=True)
     rows = []
     print(f"{'variant':<50} {'coords':>6} {'steps':>7} {'wall / sim. s':>14} {'vs real time':>13} {'first call':>11}")

@@ -179,3 +179,22 @@ def test_statics_reports_the_wind_up():
     d = res.to_json()["decouplers"]["alternator"]
     assert d["moment_Nm"] == pytest.approx(abs(load), rel=1e-9)
     assert d["windup_deg"] == pytest.approx(math.degrees(abs(load) / 5.0), rel=1e-9)
+
+
+def test_an_unloaded_decoupler_rests_engaged_and_a_driving_load_is_refused():
+    """A decoupler on an idler (no load) sits at zero wind-up: statics takes the spring engaged on
+    both sides of w = 0, where the overrunning range left the rotor's angle without an equilibrium
+    (Newton stalled at NaN); the drive's tensions are those without it.  A mean load that drives a
+    decoupled pulley's rotor ahead has no steady state: a one-line error naming the decoupler."""
+    from beltjax.static_state import StaticsError, analyse_statics
+
+    plain = analyse_statics(loads_scene(FEAD), with_unloaded=False)
+    res = analyse_statics(loads_scene(_with_decoupler(5.0, pulley="idler_top")), with_unloaded=False)
+    d = res.to_json()["decouplers"]["idler_top"]
+    assert abs(d["windup_deg"]) < 1e-6 and abs(d["moment_Nm"]) < 1e-6
+    np.testing.assert_allclose(res.span_tensions_N, plain.span_tensions_N, rtol=1e-9)
+    driving = _with_decoupler(5.0).replace('pulley = "alternator"\nmean_Nm = ', 'pulley = "alternator"\nmean_Nm = -')
+    assert driving != _with_decoupler(5.0)
+    with pytest.raises(StaticsError, match="drives its decoupler's rotor ahead") as e:
+        analyse_statics(loads_scene(driving), with_unloaded=False)
+    assert e.value.key == "decoupler[0].pulley"

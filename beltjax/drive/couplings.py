@@ -12,7 +12,12 @@ on the rotor (driving it on) and -M on the pulley; when the rotor is ahead (w < 
 overruns and nothing is transmitted.  The law is the derivative of the potential k max(w, 0)^2 / 2,
 continuous with its first derivative (C1), so statics, modes and gradients see it; at w = 0 the
 spring counts as engaged (a clutch at rest locks on any lead): the modes of an unloaded
-decoupler are those of the engaged one.  In transients a viscous ``damping`` acts across the
+decoupler are those of the engaged one.  Statics and the modes about it take the engaged spring
+on both sides of w = 0 (``engaged``): a steadily turning rotor is carried by its spring, so its
+wind-up is its mean load over k, and an unloaded rotor (a decoupler on an idler) sits at w = 0
+instead of anywhere in the overrunning range, where its angle would have no equilibrium (Newton
+met a singular matrix there); a load that drives the rotor ahead (w < 0) has no steady state and
+the statics says so (:mod:`beltjax.static_state`).  In transients a viscous ``damping`` acts across the
 spring while the clutch is engaged.  The clutch's own drag is not modelled.  A scene without
 decouplers traces none of this.
 
@@ -60,14 +65,16 @@ def _apply(f, moments, scene: Scene):
     return f
 
 
-def body_forces(f, bodies, scene: Scene):
+def body_forces(f, bodies, scene: Scene, engaged: bool = False):
     """``f`` (nb, 3; N, N m) plus the decouplers' moments on their pulleys and rotors; bodies
-    (nb, 3): the bodies' (x, y, angle), the rotors right after the route entries."""
+    (nb, 3): the bodies' (x, y, angle), the rotors right after the route entries.  ``engaged``
+    (statics and its modes): the spring k w on both sides of w = 0 (see the module docstring)."""
     if not scene.decouplers:
         return f
     n = len(scene.route.order)
     w = windups(bodies[:n, 2], bodies[n : n + len(scene.decouplers), 2], scene)
-    return _apply(f, decoupler_moment(w, jnp.stack([d.stiffness for d in scene.decouplers])), scene)
+    k = jnp.stack([d.stiffness for d in scene.decouplers])
+    return _apply(f, k * w if engaged else decoupler_moment(w, k), scene)
 
 
 def damping_forces(f, bodies, bodies_dot, scene: Scene):

@@ -87,7 +87,7 @@ def body_forces(bodies, scene: Scene, inst: Installation | None = None, bodies_d
     times the arm's speed, N m s/rad) and the [[torque]] loads (N m).
     """
     f = layout_of(scene).body_forces(jnp.zeros_like(bodies), bodies, scene)
-    f = couplings.body_forces(f, bodies, scene)  # decouplers
+    f = couplings.body_forces(f, bodies, scene, engaged=t is None)  # decouplers (engaged in statics)
     fx = effects_of(scene)
     f = fx.steady_body_forces(f, body_masses(scene, inst).reshape(-1, 3), scene, inst, t is not None)  # weights
     if t is None:
