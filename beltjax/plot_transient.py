@@ -142,7 +142,7 @@ def plot_simulation(t, channels, columns, units, path, *, title=""):
             ax.tick_params(labelbottom=False)
     for ax in bottom:
         ax.set_xlabel("time (s)")
-    if t.size and first is not None:
+    if t.size and first is not None and t[-1] > t[0]:  # (a run that failed at its start has one sample)
         first.set_xlim(float(t[0]), float(t[-1]))
     head = literal_wrapped(title, 110)
     note = f" (every {stride}th sample drawn)" if stride > 1 else ""
@@ -244,7 +244,8 @@ def plot_spectra(t, channels, columns, units, path, *, title="", fmax=None, sett
         ax.grid(alpha=0.3)
         _legend(ax, drawn)
     axes[-1].set_xlabel("frequency (Hz)")
-    axes[-1].set_xlim(0.0, top)
+    if top > 0:  # (no frequency axis from a single sample)
+        axes[-1].set_xlim(0.0, top)
     head = literal_wrapped(title, 110)
     fig.suptitle((head + "\n" if head else "")
                  + f"amplitude spectra of the last {duration:.3g} s (Hann window, trend removed; "

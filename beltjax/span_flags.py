@@ -132,3 +132,25 @@ def run_warnings(meta: dict) -> list[str]:
     lines += [slip_warning(r) for r in meta.get("slipping_pulleys", [])]
     lines += [end_slide_warning(r) for r in meta.get("displaced_span_ends", [])]
     return lines + [excitation.warning(r) for r in meta.get("excitation_warnings", [])]
+
+
+def check_initial_strain(qi, scene, inst):
+    """``qi`` (m, rad), the transient's start from ``[initial]``, when no span is stretched beyond
+    the installation's limit (:data:`beltjax.statics.MAX_INSTALL_STRAIN`, of its unstretched
+    length) there; else a one-line :class:`beltjax.errors.BeltjaxError` naming the ``[initial]``
+    key: a pulley turned by turns pulls metres of belt through its spans, which no belt stretches
+    to and no solver step survives.  A start that slackens a span (an arm released) passes: the
+    run reports it."""
+    from beltjax import drive, statics
+    from beltjax.errors import BeltjaxError
+
+    eps0 = float(inst.tension) / float(scene.belt.EA)  # the installed strain
+    strain = np.asarray(drive.span_lengths(qi, scene, inst)) / np.asarray(inst.span_length) * (1 + eps0) - 1
+    j = int(np.argmax(strain))
+    if strain[j] > statics.MAX_INSTALL_STRAIN:
+        keys = [f"initial.rotation_deg.{n}" for n, _ in scene.initial.rotation_deg]
+        keys += ["initial.arm_angle_deg"] if scene.initial.arm_angle_deg is not None else []
+        raise BeltjaxError(f"the start stretches span {drive.span_names(scene)[j]} by {100 * strain[j]:.3g} % of "
+                           f"its unstretched length, beyond the {100 * statics.MAX_INSTALL_STRAIN:g} % a belt is "
+                           "installed at: turn the pulleys by less", keys[0] if len(keys) == 1 else "initial")
+    return qi

@@ -47,7 +47,7 @@ import numpy as np
 from beltjax import drive, excitation, runtime, signals, statics
 from beltjax.drive import belt_slip, couplings
 from beltjax.drive.belt_slip import split_state
-from beltjax.span_flags import displaced_span_ends, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
+from beltjax.span_flags import check_initial_strain, displaced_span_ends, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene
@@ -141,7 +141,7 @@ def initial_state(scene: Scene):
             qi = qi.at[idx[name]].add(math.radians(deg))
         if ini.arm_angle_deg is not None:
             qi = qi.at[idx["arm"]].set(math.radians(ini.arm_angle_deg) - inst.arm_angle)
-        qi0 = _straighten(qi, qi0, scene, inst)
+        qi0 = _straighten(check_initial_strain(qi, scene, inst), qi0, scene, inst)
     return inst, qi0, jnp.zeros_like(qi0)
 
 

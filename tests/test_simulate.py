@@ -809,6 +809,20 @@ def installation():
     return dict(scene=sc, res=res, statics=st, unstretched=x)
 
 
+def test_a_start_no_belt_stretches_to_is_refused(installation):
+    """An [initial] rotation of turns (3000 deg of the alternator: metres of belt pulled through
+    its spans) is a one-line error naming the [initial] table before any step (it ran into a
+    solver failure at t = 0 with a matplotlib warning on stderr); the shipped start (a slack
+    belt, the arm released) passes, as the fixture shows."""
+    from beltjax.errors import BeltjaxError
+
+    text = (SCENES / "sim_tensioner_installation.toml").read_text()
+    bad = substitute(text, ("alternator = -4.181391", "alternator = -3000.0"))
+    with pytest.raises(BeltjaxError, match="stretches span .* beyond the 2 %") as e:
+        transient.simulate(loads_scene(bad), 0.01)
+    assert e.value.key == "initial"
+
+
 def test_tensioner_installation_starts_from_the_unstretched_belt(ref, installation):
     """The scene's [initial] is the state where the belt carries no force (section 7.2.1.2:
     "no effort at the bearings"): every span at zero tension, and the crank's and the
