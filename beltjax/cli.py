@@ -13,7 +13,7 @@ import os
 import pathlib
 import sys
 
-from beltjax.errors import BeltjaxError, InputError
+from beltjax.errors import BeltjaxError, InputError, printable
 from beltjax.summaries import (_panels_note, campbell_summary, modal_table, simulation_table, span_table,  # noqa: F401
                                statics_table)
 from beltjax.drive.effects import effects_of
@@ -259,6 +259,9 @@ def cmd_simulate(args) -> int:
     from beltjax.plotting import plot_simulation, plot_spectra
 
     scene = _load(args.scene)
+    kept = args.t_end * (1 - args.settle) / (args.output_dt or transient.default_output_dt(scene))
+    if args.settle > 0 and kept < 16:  # (before the run) a summary of a few samples says nothing
+        raise InputError(f"--settle: {args.settle:g} leaves {int(kept)} output samples to summarise, fewer than 16")
     out = _out_dir(args.out)
     failed = None
     try:
@@ -455,11 +458,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     """Entry point of the ``beltjax`` command; returns the exit status.
 
-    A command writes its files into a temporary folder next to ``--out`` and they are moved
-    into ``--out`` only when it has finished without an error (:mod:`beltjax.outputs`); then
-    ``wrote ...`` lists their final paths.  A failing command leaves ``--out`` as it was (not
-    created when it did not exist).  Any error ends an open progress line first, so that
-    ``beltjax: error: ...`` starts a line of its own.
+    A command writes its files into a temporary folder next to ``--out``, moved into ``--out`` only
+    when it has finished without an error (:mod:`beltjax.outputs`; ``wrote ...`` lists them); a
+    failing command leaves ``--out`` as it was.  An error ends an open progress line first.
     """
     from beltjax import progress, runtime
 
@@ -469,9 +470,9 @@ def main(argv=None) -> int:
         args = build_parser().parse_args(argv)
         if args.command is None:
             raise InputError("a command is required: span, statics, modal, campbell, simulate, orders, fit, sweep or optimize")
-        for name in ("scene", "spec", "data"):
+        for name in ("scene", "spec", "data", "out"):
             if getattr(args, name, None) == "":
-                raise InputError(f"argument {name}: empty file name")
+                raise InputError("--out: empty directory name" if name == "out" else f"argument {name}: empty file name")
         runtime.enable_compile_cache()
         with outputs.staged(args.out) as stage:
             code = args.func(args)
@@ -480,7 +481,7 @@ def main(argv=None) -> int:
             print(outputs.written_line(stage.written), flush=True)
         return code
     except BeltjaxError as exc:
-        progress.message(f"beltjax: error: {exc}")
+        progress.message(f"beltjax: error: {printable(str(exc))}")
         return 2
     except KeyboardInterrupt:
         progress.message("beltjax: interrupted")
@@ -490,7 +491,7 @@ def main(argv=None) -> int:
         if debug:
             raise
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        progress.message(f"beltjax: error: {msg}")
+        progress.message(f"beltjax: error: {printable(msg)}")
         return 1
 
 

@@ -19,6 +19,12 @@ def one_line(message) -> str:
     return " ".join(str(message).split())
 
 
+def printable(text: str) -> str:
+    """``text`` with each character a terminal would not print as itself (control bytes of a
+    binary file quoted back, say) written as its escape, ``\\x00``."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class BeltjaxError(ValueError):
     """Bad input or an impossible request: a one-line message naming the key or cause.
 

@@ -3,6 +3,7 @@ the key, extra context keyword-only; the command line maps them all to one line 
 
 import importlib
 import inspect
+import pathlib
 
 import pytest
 
@@ -41,3 +42,18 @@ def test_every_error_has_the_same_signature():
 @pytest.mark.parametrize("message", ["belt.EA: already prefixed", "belt.EA"])
 def test_a_key_is_not_repeated(message):
     assert str(BeltjaxError(message, "belt.EA")) == message
+
+
+def test_control_characters_are_escaped_on_the_error_line(tmp_path, capsys):
+    """A message that quotes bytes of a binary file (a crank trace of control characters) prints
+    them as escapes, not raw NUL and control bytes on the terminal."""
+    from beltjax.cli import main
+    from beltjax.errors import printable
+
+    assert printable("a\x00b\x1b[2J\u00e9") == "a\\x00b\\x1b[2J\u00e9"
+    scene = (pathlib.Path(__file__).resolve().parents[1] / "scenes" / "fead_8pulley.toml").read_text()
+    (tmp_path / "crank.csv").write_bytes(bytes(range(32)) + b"\n" + bytes(range(1, 32)) + b"\n")
+    (tmp_path / "scene.toml").write_text(scene + '\n[[fluctuation]]\npulley = "crank"\nfile = "crank.csv"\n')
+    assert main(["statics", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and all(c.isprintable() for c in err), repr(err)

@@ -287,6 +287,9 @@ def parse(spec: dict, scene: Scene) -> Problem:
     objectives = tuple(_parse_objective(d, i, scene) for i, d in enumerate(t.tables("objective")))
     if not objectives:
         raise OptimizeError("at least one [[objective]] is required", "objective")
+    if all(o.weight == 0 for o in objectives):
+        raise OptimizeError("every objective's weight is 0: nothing to minimise (give one a weight > 0)",
+                            "objective[0].weight")
     constraints = tuple(_parse_constraint(d, i, scene) for i, d in enumerate(t.tables("constraint")))
     return Problem(
         variables=variables,

@@ -29,6 +29,9 @@ SETTLE_TOL = 1e-2
 RETRY_FACTOR = 4.0
 #: most speeds of one response
 MAX_SPEEDS = 2000
+#: the longest settling transient per speed (s): a drive still moving after it has no steady state
+#: to report (and a speed that has not settled runs RETRY_FACTOR times longer)
+MAX_SETTLE_S = 100.0
 #: samples per excitation cycle accepted
 MIN_SAMPLES, MAX_SAMPLES = 16, 4096
 #: the status of a speed, worst first (span_slack: a span's force on the pulleys, its tension less
@@ -243,8 +246,9 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     if given.method not in METHODS:
         raise OrdersError(f"method: {given.method!r}; choose one of {', '.join(METHODS)}", "method")
     check(scene, rpm)
-    if not (math.isfinite(settle_s) and settle_s >= 0):
-        raise OrdersError(f"settle_s: must be a finite time >= 0 s, got {settle_s!r}", "settle_s")
+    if not (math.isfinite(settle_s) and 0 <= settle_s <= MAX_SETTLE_S):
+        raise OrdersError(f"settle_s: must be a finite time in [0, {MAX_SETTLE_S:g}] s (a drive still moving after "
+                          f"{MAX_SETTLE_S:g} s has no steady state to report), got {settle_s!r}", "settle_s")
     values = dict(values or {})
     for k, val in values.items():
         parameters.check(scene, k)

@@ -13,7 +13,7 @@ from beltjax import geometry, textfile
 from beltjax.tomltable import describe
 from beltjax.scene.spec import Scene, TENSIONER, drive_pulley_index
 from beltjax.scene import fluctuations as fluctuation_tables
-from beltjax.scene.sections import _TOP_KEYS, _check_effects, _fail, _parse_belt, _parse_decouplers, _parse_initial, _parse_isolator, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
+from beltjax.scene.sections import _TOP_KEYS, _check_effects, _check_listed_effects, _check_run_settings, _fail, _parse_belt, _parse_decouplers, _parse_initial, _parse_isolator, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _num, _table
 
 
 def _key_for(route_idx, scene_names, order):
@@ -149,6 +149,8 @@ def parse_scene(data: dict[str, Any], source: str = "<dict>") -> Scene:
     problem = validate.scene_problem(scene)
     if problem is not None:
         _fail(*problem, source)
+    _check_listed_effects(scene, data, source)
+    _check_run_settings(scene, source)
     return scene
 
 

@@ -219,6 +219,8 @@ def _parse_tensioner(data, source) -> Tensioner:
                      ("stop_max_deg", hi is not None and arm is not None and arm > hi)):
         if bad:
             t.fail(key, f"the stops [{lo}, {hi}] deg do not contain the arm's angle arm_angle_deg = {arm!r} deg")
+    if t.has("stop_stiffness") and lo is None and hi is None:
+        t.fail("stop_stiffness", "given but there is no stop (stop_min_deg, stop_max_deg): it would change nothing")
     vals.update(stop_min_deg=_arr(lo), stop_max_deg=_arr(hi),
                 stop_stiffness=_arr(_num(t, "stop_stiffness", "tensioner", required=False, default=1e4)))
     return Tensioner(**vals)
@@ -268,6 +270,16 @@ def _window(t, group):
     return _arr(t0), _arr(t1)
 
 
+def _amplitude_needs_frequency(t, amplitude_key: str, group: str) -> None:
+    """A load's alternating part A sin(2 pi f t + phase) is nothing at f = 0 but a constant in
+    disguise: a non-zero amplitude without a frequency > 0 is an error, not ignored."""
+    a = _num(t, amplitude_key, group, required=False, default=0.0)
+    f = _num(t, "frequency_hz", group, required=False, default=0.0)
+    if a != 0.0 and not f > 0.0:
+        t.fail("frequency_hz", f"{amplitude_key} = {a!r} alternates at frequency_hz, which is "
+               f"{'missing' if not t.has('frequency_hz') else repr(f)}: give a frequency > 0 (a steady load is mean_Nm)")
+
+
 def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
     if TENSIONER in free_names:
         free_names = [*free_names, ARM]
@@ -284,6 +296,7 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
                 "a driven pulley's motion is prescribed)",
             )
         t0, t1 = _window(t, "torque")
+        _amplitude_needs_frequency(t, "amplitude_Nm", "torque")
         out.append(
             Torque(
                 pulley=name,
@@ -350,6 +363,7 @@ def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLo
         if not 1 <= node <= n_elements - 1:
             t.fail("node", f"must be an interior node, 1 to {n_elements - 1} (elements_per_span - 1), got {node!r}")
         t0, t1 = _window(t, "span_load")
+        _amplitude_needs_frequency(t, "amplitude_N", "span_load")
         out.append(
             SpanLoad(
                 span=name,
@@ -424,3 +438,45 @@ def _check_effects(scene: Scene, source: str):
     refused = belt_slip.check(scene)
     if refused is not None:
         _fail(*refused, source)
+
+
+def _check_listed_effects(scene: Scene, data: dict, source: str) -> None:
+    """A listed effect whose parameter the file does not give anywhere would change nothing: an
+    error, as a parameter given while its effect is off (:func:`_check_effects`).  An explicit
+    zero passes (a nominal a sweep can vary).  ``belt_slip`` acts with its default slip speed."""
+    pulleys = [p for p in data.get("pulley", []) if isinstance(p, dict)]
+    tensioner = data.get("tensioner") if isinstance(data.get("tensioner"), dict) else None
+    gives = {
+        "belt_damping": "CA" in data.get("belt", {}),
+        "bearing_damping": any("bearing_damping" in p for p in pulleys),
+        "tensioner_damping": tensioner is not None and "damping" in tensioner,
+        "unbalance": any("cm_offset" in p for p in pulleys),
+        "speed_fluctuation": bool(scene.fluctuations) or any("fluctuation_amplitude_deg" in p for p in pulleys),
+        "tensioner_friction": tensioner is not None and "friction_moment" in tensioner,
+    }
+    from beltjax.drive.effects import effects_of
+
+    for name in (m.name for m in effects_of(scene).listed):
+        if name in gives and not gives[name]:
+            what = "[[fluctuation]] table or " if name == "speed_fluctuation" else ""
+            _fail("model.effects", f"\"{name}\" is listed but the scene gives no {what}"
+                  f"{_EFFECT_PARAMETERS[name]}: it would change nothing (give it, or leave the effect out)", source)
+
+
+def _check_run_settings(scene: Scene, source: str) -> None:
+    """A [simulation] key the scene's solver does not read is an error, not silently ignored:
+    rtol and atol with the fixed-step generalized_alpha, rho_inf with an adaptive solver."""
+    from beltjax.drive.spans import spans_of
+
+    sim, bare = scene.simulation, Simulation()
+    solver = sim.solver or spans_of(scene).default_solver
+    if solver == "generalized_alpha":
+        for k in ("rtol", "atol"):
+            if getattr(sim, k) != getattr(bare, k):
+                _fail(f"simulation.{k}", "given but the solver generalized_alpha takes fixed steps of dt_s (its "
+                      "tolerance is its Newton iteration's): leave it out, or give an adaptive solver "
+                      "(tsit5, dopri8, kvaerno5)", source)
+    elif sim.rho_inf != bare.rho_inf:
+        _fail("simulation.rho_inf", f"given but the solver {solver} is adaptive: rho_inf sets generalized_alpha's "
+              "numerical damping; leave it out, or give solver = \"generalized_alpha\"", source)
+

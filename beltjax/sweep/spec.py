@@ -182,6 +182,9 @@ def _parse_grid(i: int, d: dict) -> GridAxis:
         num = t.integer("num", minimum=1)
         if num > MAX_CASES:
             raise SweepError(f"at most {MAX_CASES} cases in a sweep, got {num}", f"{key}.num")
+        if num == 1 and a != b:
+            raise SweepError(f"1 gives start = {a!r} alone, never stop = {b!r}: give num >= 2, or values = [{a!r}]",
+                             f"{key}.num")
         if spacing == "log":
             if a <= 0 or b <= 0:
                 raise SweepError(f"\"log\" needs start and stop > 0, got {a!r}, {b!r}", f"{key}.spacing")
@@ -265,6 +268,11 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
     elif "rpm" in data:
         raise SweepError("given but \"campbell\" is not in outputs", "rpm")
     settle_s = top.number("settle_s", required=False, default=1.0, nonnegative=True)
+    from beltjax.orders.run import MAX_SETTLE_S
+
+    if settle_s > MAX_SETTLE_S:
+        raise SweepError(f"must be at most {MAX_SETTLE_S:g} s (a drive still moving after it has no steady state "
+                         f"to report), got {settle_s!r}", "settle_s")
     if "settle_s" in data and "response" not in outputs:
         raise SweepError("given but \"response\" is not in outputs", "settle_s")
     chunk = top.integer("chunk", required=False, minimum=1)
