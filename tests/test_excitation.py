@@ -104,7 +104,7 @@ def test_a_run_of_too_many_steps_is_refused_with_the_number():
 
 
 def test_a_load_window_shorter_than_two_steps_is_refused():
-    sc = loads_scene(T200 + _torque(0.0, extra="mean_Nm = 5.0\nt_start_s = 0.01\nt_end_s = 0.0101\n"))
+    sc = loads_scene(T200 + _torque(0.0, amplitude=0.0, extra="mean_Nm = 5.0\nt_start_s = 0.01\nt_end_s = 0.0101\n"))
     with pytest.raises(transient.TransientError, match=r"^torque\[0\].t_end_s: the torque on alternator acts for "
                                                        r"0.0001 s \(t_start_s to t_end_s\), less than 2 time steps"):
         transient.simulate(sc, 0.1, dt=2e-4)

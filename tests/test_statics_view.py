@@ -19,7 +19,7 @@ def _variant():
     """The same drive with other transient tables: a lasting load, a load on at t = 0, a span load,
     an [initial] table."""
     return loads_scene(TEXT + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 4.0\n'
-                       '\n[[torque]]\npulley = "alternator"\nmean_Nm = 2.5\namplitude_Nm = 1.0\nt_end_s = 0.5\n'
+                       '\n[[torque]]\npulley = "alternator"\nmean_Nm = 2.5\namplitude_Nm = 1.0\nfrequency_hz = 5.0\nt_end_s = 0.5\n'
                        '\n[[span_load]]\nspan = "tensioner-alternator"\nnode = 1\namplitude_N = 1.0\nfrequency_hz = 10.0\n'
                        '\n[initial]\nrotation_deg = { alternator = 1.0 }\n')
 

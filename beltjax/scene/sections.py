@@ -271,13 +271,15 @@ def _window(t, group):
 
 
 def _amplitude_needs_frequency(t, amplitude_key: str, group: str) -> None:
-    """A load's alternating part A sin(2 pi f t + phase) is nothing at f = 0 but a constant in
-    disguise: a non-zero amplitude without a frequency > 0 is an error, not ignored."""
+    """A load's alternating part A sin(2 pi f t + phase) is nothing at f = 0 with sin(phase) = 0:
+    a non-zero amplitude that adds nothing is an error, not ignored (f = 0 with a phase is a
+    constant force: a span load's steady part)."""
     a = _num(t, amplitude_key, group, required=False, default=0.0)
     f = _num(t, "frequency_hz", group, required=False, default=0.0)
-    if a != 0.0 and not f > 0.0:
-        t.fail("frequency_hz", f"{amplitude_key} = {a!r} alternates at frequency_hz, which is "
-               f"{'missing' if not t.has('frequency_hz') else repr(f)}: give a frequency > 0 (a steady load is mean_Nm)")
+    phase = _num(t, "phase_deg", group, required=False, default=0.0)
+    if a != 0.0 and f == 0.0 and abs(math.sin(math.radians(phase))) < 1e-12:
+        t.fail("frequency_hz", f"{amplitude_key} = {a!r} at frequency_hz = 0 and phase_deg = {phase!r} adds "
+               "A sin(phase) = 0, nothing: give a frequency > 0 (or a phase, for a constant part)")
 
 
 def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
