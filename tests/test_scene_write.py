@@ -133,3 +133,22 @@ def test_optimised_scene_file_in_place_or_whole(tmp_path):
     _same(expected, loads_scene(text))
     with pytest.raises(OptimizeError, match="cannot be written"):
         optimised_scene_text(scene, {"belt.CA": 2.0}, "", None)
+
+
+def test_a_listed_effect_at_zero_is_written_back():
+    """A listed effect whose parameter is 0 (a nominal a sweep can vary) keeps its key in the
+    written file: the reader refuses a listed effect the file gives no parameter for."""
+    from beltjax.scene import dumps_scene, loads_scene
+    from beltjax.scene.write import first_difference
+
+    text = (pathlib.Path(__file__).resolve().parents[1] / "scenes" / "fead_8pulley.toml").read_text()
+    for old, new in (("CA = 5.0", "CA = 0.0"), ("damping = 0.5", "damping = 0.0"),
+                     ('effects = ["transport"', 'effects = ["unbalance", "bearing_damping", "transport"'),
+                     ('name = "ac"', 'name = "ac"\ncm_offset = [0.0, 0.0]\nbearing_damping = 0.0')):
+        assert old in text
+        text = text.replace(old, new, 1)
+    scene = loads_scene(text)
+    written = dumps_scene(scene)
+    for key in ("CA = 0.0", "damping = 0.0", "bearing_damping = 0.0", "cm_offset = [0.0, 0.0]"):
+        assert key in written, key
+    assert first_difference(scene, loads_scene(written)) is None

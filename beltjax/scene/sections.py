@@ -442,24 +442,33 @@ def _check_effects(scene: Scene, source: str):
         _fail(*refused, source)
 
 
+#: the key a listed effect must find in its scene file, (table, key): without it the effect would
+#: change nothing (:func:`_check_listed_effects`; the writer keeps it: beltjax.scene.write)
+LISTED_KEYS = {
+    "belt_damping": ("belt", "CA"),
+    "bearing_damping": ("pulley", "bearing_damping"),
+    "tensioner_damping": ("tensioner", "damping"),
+    "unbalance": ("pulley", "cm_offset"),
+    "speed_fluctuation": ("pulley", "fluctuation_amplitude_deg"),  # or a [[fluctuation]] table
+    "tensioner_friction": ("tensioner", "friction_moment"),
+}
+
+
 def _check_listed_effects(scene: Scene, data: dict, source: str) -> None:
     """A listed effect whose parameter the file does not give anywhere would change nothing: an
     error, as a parameter given while its effect is off (:func:`_check_effects`).  An explicit
     zero passes (a nominal a sweep can vary).  ``belt_slip`` acts with its default slip speed."""
-    pulleys = [p for p in data.get("pulley", []) if isinstance(p, dict)]
-    tensioner = data.get("tensioner") if isinstance(data.get("tensioner"), dict) else None
-    gives = {
-        "belt_damping": "CA" in data.get("belt", {}),
-        "bearing_damping": any("bearing_damping" in p for p in pulleys),
-        "tensioner_damping": tensioner is not None and "damping" in tensioner,
-        "unbalance": any("cm_offset" in p for p in pulleys),
-        "speed_fluctuation": bool(scene.fluctuations) or any("fluctuation_amplitude_deg" in p for p in pulleys),
-        "tensioner_friction": tensioner is not None and "friction_moment" in tensioner,
-    }
     from beltjax.drive.effects import effects_of
 
+    def tables(name):
+        v = data.get(name)
+        return [x for x in v if isinstance(x, dict)] if isinstance(v, list) else [v] if isinstance(v, dict) else []
+
     for name in (m.name for m in effects_of(scene).listed):
-        if name in gives and not gives[name]:
+        if name not in LISTED_KEYS or (name == "speed_fluctuation" and scene.fluctuations):
+            continue
+        table, key = LISTED_KEYS[name]
+        if not any(key in t for t in tables(table)):
             what = "[[fluctuation]] table or " if name == "speed_fluctuation" else ""
             _fail("model.effects", f"\"{name}\" is listed but the scene gives no {what}"
                   f"{_EFFECT_PARAMETERS[name]}: it would change nothing (give it, or leave the effect out)", source)
