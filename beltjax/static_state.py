@@ -213,12 +213,10 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
             pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
         res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
     if scene.decouplers:  # each decoupler's wind-up (the pulley's lead over its rotor) and moment
-        phis, _ = drive.angles_and_arm(jnp.asarray(res.qi), scene, inst)
-        psi = drive.rotor_angles(jnp.asarray(res.qi), scene)
-        w_all = couplings.windups(phis, psi, scene)
+        w_all = couplings.static_windups(jnp.asarray(res.qi), scene, inst)
         for j, d in enumerate(scene.decouplers):
             w = float(w_all[j])
-            if w < -1e-9:  # (rad) the rotor carried ahead by its load: the clutch would overrun
+            if w < couplings.OVERRUN_WINDUP:  # the rotor carried ahead by its load: the clutch would overrun
                 raise StaticsError(f"the mean load on {d.pulley!r} drives its decoupler's rotor ahead of the pulley "
                                    f"(wind-up {math.degrees(w):.3g} deg): the clutch would overrun and the rotor "
                                    "has no steady state; load a decoupled pulley against the belt's travel",

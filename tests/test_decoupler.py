@@ -199,3 +199,17 @@ def test_an_unloaded_decoupler_rests_engaged_and_a_driving_load_is_refused():
     with pytest.raises(StaticsError, match="drives its decoupler's rotor ahead") as e:
         analyse_statics(loads_scene(driving), with_unloaded=False)
     assert e.value.key == "decoupler[0].pulley"
+
+
+def test_a_sweep_case_whose_load_drives_the_rotor_ahead_fails():
+    """The batched statics of a sweep takes the same engaged spring, so a load that drives the
+    rotor ahead converges there at a negative wind-up: the case fails as decoupler_overrun (NaN),
+    not ok, while the same drive loaded against its travel is ok."""
+    from beltjax import sweep
+
+    driving = _with_decoupler(5.0).replace('pulley = "alternator"\nmean_Nm = ', 'pulley = "alternator"\nmean_Nm = -')
+    k = {"decoupler.alternator.stiffness": np.array([5.0, 8.0])}
+    bad = sweep.evaluate(loads_scene(driving), k, ("statics",))
+    good = sweep.evaluate(loads_scene(_with_decoupler(5.0)), k, ("statics",))
+    assert list(bad["status"]) == ["decoupler_overrun"] * 2 and np.all(np.isnan(bad["span_tensions_N"]))
+    assert list(good["status"]) == ["ok"] * 2

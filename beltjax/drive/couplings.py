@@ -77,6 +77,28 @@ def body_forces(f, bodies, scene: Scene, engaged: bool = False):
     return _apply(f, k * w if engaged else decoupler_moment(w, k), scene)
 
 
+#: a static wind-up below this (rad) means the mean load drives the rotor ahead: the clutch overruns
+OVERRUN_WINDUP = -1e-9
+
+
+def static_windups(qi, scene: Scene, inst):
+    """Each decoupler's wind-up (rad, ``scene.decouplers`` order) at the static state ``qi``; an
+    entry below :data:`OVERRUN_WINDUP` is a load that drives the rotor ahead, which has no steady
+    state (statics takes the spring engaged on both sides of zero: see the module docstring)."""
+    from beltjax.drive.kinematics import angles_and_arm, rotor_angles
+
+    phis, _ = angles_and_arm(qi, scene, inst)
+    return windups(phis, rotor_angles(qi, scene), scene)
+
+
+def static_overrun(qi, scene: Scene, inst):
+    """Whether a decoupler's mean load drives its rotor ahead at the static state ``qi`` (bool;
+    False without decouplers): the batched statics' check (sweeps, optimisation)."""
+    if not scene.decouplers:
+        return jnp.asarray(False)
+    return jnp.any(static_windups(qi, scene, inst) < OVERRUN_WINDUP)
+
+
 def damping_forces(f, bodies, bodies_dot, scene: Scene):
     """``f`` plus the decouplers' viscous moments (transients): c times the rate of wind-up while
     the clutch is engaged (w >= 0), nothing while it overruns (N m)."""

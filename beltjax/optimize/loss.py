@@ -11,6 +11,7 @@ import numpy as np
 
 from beltjax import critical, drive, drive_modal, friction, parameters, statics
 from beltjax.scene import Scene
+from beltjax.drive import couplings
 from beltjax.optimize import modes
 from beltjax.optimize.problem import _UNIT, SOFT_HZ, Constraint, Problem, _band_starts, _bands, _pairs, sample_rpm
 from beltjax.drive.effects import effects_of
@@ -89,7 +90,7 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     )
     ok = (~jnp.any(jnp.stack(list(statics.installation_faults(sc, inst).values())))
           & jnp.all((inst.wrap > 0) & (inst.wrap < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0)
-          & jnp.all(force > 0))
+          & jnp.all(force > 0) & ~couplings.static_overrun(qi, sc, inst))
     finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in m.values()]))
     if any(c.kind == "min_slip_margin" for c in problem.constraints):  # the arcs' slip margins (capstan law)
         m["slip_margins"] = friction.arc_margins(sc, force[0], inst.wrap)[1]

@@ -19,6 +19,7 @@ from beltjax.scene import Scene
 from beltjax.sweep.spec import MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
 from beltjax.sweep.chunks import _chunk_size, _devices, default_chunk  # noqa: F401 (re-exported)
 from beltjax.drive.effects import effects_of
+from beltjax.drive import couplings
 
 @dataclasses.dataclass(frozen=True)
 class _Options:
@@ -73,8 +74,9 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     names = ["no_arm_balance", "belt_slack", "belt_overstretched"]
     conds = [faults[k] for k in names]
     codes = [_CODE[k] for k in names]
-    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v)]
-    codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"]]
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v),
+              couplings.static_overrun(qi, sc, inst)]
+    codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"], _CODE["decoupler_overrun"]]
     res: dict[str, jax.Array] = {}
     if "statics" in outputs:
         res["span_tensions_N"] = out["tensions"]
@@ -406,7 +408,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     # string-spread limit at the installed tension (validate.solved_status)
     arm = out["tensioner_angle_deg"] if scene.tensioner is not None else None
     solved, _ = validate.solved_status(scene, out["installation_tension_N"], arm, values, n)
-    solved_ok = (pre == _CODE["ok"]) & np.isin(out["code"], (_CODE["ok"], _CODE["unstable"]))
+    solved_ok = (pre == _CODE["ok"]) & np.isin(out["code"], (_CODE["ok"], _CODE["unstable"], _CODE["span_slack"],
+                                                             _CODE["not_settled"]))  # (flagged cases keep numbers)
     pre = np.where(solved_ok, [_CODE[s] for s in solved], pre)
     if "statics" not in outputs:
         out.pop("installation_tension_N")

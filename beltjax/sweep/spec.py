@@ -37,7 +37,7 @@ SPACINGS = ("linear", "log")
 #: case status codes (index = the integer code) and their meaning
 STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched", "no_arm_balance",
           "not_converged", "span_slack", "non_finite", "supercritical", "overlap", "no_belt_path",
-          "ill_conditioned", "transient_failed", "not_settled")
+          "ill_conditioned", "transient_failed", "not_settled", "decoupler_overrun")
 
 REASONS = {
     "ok": "solved",
@@ -53,6 +53,7 @@ REASONS = {
     "no_arm_balance": "no tensioner arm angle balances the spring against the belt",
     "not_converged": "no static equilibrium found (Newton, also with speed stepping)",
     "span_slack": "a span would go slack (tension <= 0)",
+    "decoupler_overrun": "a decoupled pulley's mean load drives its rotor ahead: the clutch overruns, no steady state",
     "non_finite": "non-finite outputs",
     "transient_failed": "the response's transient (Dopri8) did not reach the end of its cycle",
     "not_settled": "the response had not settled into its periodic steady state after settle_s "
