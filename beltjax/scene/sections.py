@@ -76,18 +76,6 @@ _INITIAL_KEYS = ("rotation_deg", "arm_angle_deg")
 _SIMULATION_KEYS = ("solver", "dt_s", "rho_inf", "rtol", "atol", "output_dt_s", "nodes", "max_steps")
 
 
-#: effect -> (what it needs, how to tell that the scene gives it)
-_EFFECT_PARAMETERS = {
-    "belt_damping": "belt.CA",
-    "bearing_damping": "pulley[i].bearing_damping",
-    "tensioner_damping": "tensioner.damping",
-    "unbalance": "pulley[i].cm_offset",
-    "speed_fluctuation": "pulley[i].fluctuation_amplitude_deg",
-    "tensioner_friction": "tensioner.friction_moment",
-    "belt_slip": "belt.slip_speed",
-}
-
-
 _TENSIONER_KEYS = (
     "pivot",
     "arm_length",
@@ -443,7 +431,7 @@ def _check_effects(scene: Scene, source: str):
 
 
 #: the key a listed effect must find in its scene file, (table, key): without it the effect would
-#: change nothing (:func:`_check_listed_effects`; the writer keeps it: beltjax.scene.write)
+#: change nothing (:func:`listed_without_key`; ``belt_slip`` acts with its default slip speed)
 LISTED_KEYS = {
     "belt_damping": ("belt", "CA"),
     "bearing_damping": ("pulley", "bearing_damping"),
@@ -454,24 +442,35 @@ LISTED_KEYS = {
 }
 
 
-def _check_listed_effects(scene: Scene, data: dict, source: str) -> None:
-    """A listed effect whose parameter the file does not give anywhere would change nothing: an
-    error, as a parameter given while its effect is off (:func:`_check_effects`).  An explicit
-    zero passes (a nominal a sweep can vary).  ``belt_slip`` acts with its default slip speed."""
+def listed_without_key(scene: Scene, doc: dict) -> list[tuple[str, str, str]]:
+    """(effect, table, key) of each listed effect whose :data:`LISTED_KEYS` key the scene file's
+    dict ``doc`` (as parsed, or as :func:`beltjax.scene.write.scene_document` builds it) gives
+    nowhere.  The reader refuses the first (:func:`_check_listed_effects`); the writer adds them."""
     from beltjax.drive.effects import effects_of
 
     def tables(name):
-        v = data.get(name)
+        v = doc.get(name)
         return [x for x in v if isinstance(x, dict)] if isinstance(v, list) else [v] if isinstance(v, dict) else []
 
+    out = []
     for name in (m.name for m in effects_of(scene).listed):
         if name not in LISTED_KEYS or (name == "speed_fluctuation" and scene.fluctuations):
             continue
         table, key = LISTED_KEYS[name]
         if not any(key in t for t in tables(table)):
-            what = "[[fluctuation]] table or " if name == "speed_fluctuation" else ""
-            _fail("model.effects", f"\"{name}\" is listed but the scene gives no {what}"
-                  f"{_EFFECT_PARAMETERS[name]}: it would change nothing (give it, or leave the effect out)", source)
+            out.append((name, table, key))
+    return out
+
+
+def _check_listed_effects(scene: Scene, data: dict, source: str) -> None:
+    """A listed effect whose parameter the file does not give anywhere would change nothing: an
+    error, as a parameter given while its effect is off (:func:`_check_effects`).  An explicit
+    zero passes (a nominal a sweep can vary)."""
+    for name, table, key in listed_without_key(scene, data)[:1]:
+        what = "[[fluctuation]] table or " if name == "speed_fluctuation" else ""
+        given = f"{table}[i].{key}" if table == "pulley" else f"{table}.{key}"
+        _fail("model.effects", f"\"{name}\" is listed but the scene gives no {what}{given}: it would change "
+              "nothing (give it, or leave the effect out)", source)
 
 
 def _check_run_settings(scene: Scene, source: str) -> None:

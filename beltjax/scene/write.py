@@ -158,18 +158,13 @@ def scene_document(scene: Scene) -> dict:
 def _keep_listed(doc: dict, scene: Scene) -> None:
     """Each listed effect's key (:data:`beltjax.scene.sections.LISTED_KEYS`) written even at its
     default 0, which the reader would otherwise refuse as an effect that changes nothing."""
-    from beltjax.drive.effects import effects_of
-    from beltjax.scene.sections import LISTED_KEYS
+    from beltjax.scene.sections import listed_without_key
 
-    for name in (m.name for m in effects_of(scene).listed):
-        if name not in LISTED_KEYS or (name == "speed_fluctuation" and scene.fluctuations):
-            continue
-        table, key = LISTED_KEYS[name]
+    for name, table, key in listed_without_key(scene, doc):
         if table == "pulley":
-            if not any(key in t for t in doc["pulley"]):
-                i = drive_pulley_index(scene.pulleys) if name == "speed_fluctuation" else 0
-                _put(doc["pulley"][i], key, getattr(scene.pulleys[i], key), None)
-        elif table in doc and key not in doc[table]:
+            i = drive_pulley_index(scene.pulleys) if name == "speed_fluctuation" else 0
+            _put(doc["pulley"][i], key, getattr(scene.pulleys[i], key), None)
+        elif table in doc:
             _put(doc[table], key, getattr(scene.belt if table == "belt" else scene.tensioner, key), None)
 
 
