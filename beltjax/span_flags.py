@@ -144,8 +144,8 @@ def check_initial_strain(qi, scene, inst):
     from beltjax import drive, statics
     from beltjax.errors import BeltjaxError
 
-    eps0 = float(inst.tension) / float(scene.belt.EA)  # the installed strain
-    strain = np.asarray(drive.span_lengths(qi, scene, inst)) / np.asarray(inst.span_length) * (1 + eps0) - 1
+    unstretched = np.asarray(inst.span_length) / float(inst.stretch)  # (m) as drive.element_length
+    strain = np.asarray(drive.span_lengths(qi, scene, inst)) / unstretched - 1
     j = int(np.argmax(strain))
     if strain[j] > statics.MAX_INSTALL_STRAIN:
         keys = [f"initial.rotation_deg.{n}" for n, _ in scene.initial.rotation_deg]
