@@ -258,16 +258,16 @@ def _window(t, group):
     return _arr(t0), _arr(t1)
 
 
-def _amplitude_needs_frequency(t, amplitude_key: str, group: str) -> None:
-    """A load's alternating part A sin(2 pi f t + phase) is nothing at f = 0 with sin(phase) = 0:
-    a non-zero amplitude that adds nothing is an error, not ignored (f = 0 with a phase is a
-    constant force: a span load's steady part)."""
-    a = _num(t, amplitude_key, group, required=False, default=0.0)
-    f = _num(t, "frequency_hz", group, required=False, default=0.0)
-    phase = _num(t, "phase_deg", group, required=False, default=0.0)
+def _amplitude_needs_frequency(t, amplitude_key: str, load):
+    """``load`` (a parsed [[torque]] or [[span_load]]) when its alternating part
+    A sin(2 pi f t + phase) adds something; a non-zero amplitude at f = 0 with sin(phase) = 0 adds
+    nothing and is an error, not ignored (f = 0 with a phase is a constant force: a span load's
+    steady part)."""
+    a, f, phase = (float(x) for x in (getattr(load, amplitude_key), load.frequency_hz, load.phase_deg))
     if a != 0.0 and f == 0.0 and abs(math.sin(math.radians(phase))) < 1e-12:
         t.fail("frequency_hz", f"{amplitude_key} = {a!r} at frequency_hz = 0 and phase_deg = {phase!r} adds "
                "A sin(phase) = 0, nothing: give a frequency > 0 (or a phase, for a constant part)")
+    return load
 
 
 def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
@@ -286,18 +286,16 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
                 "a driven pulley's motion is prescribed)",
             )
         t0, t1 = _window(t, "torque")
-        _amplitude_needs_frequency(t, "amplitude_Nm", "torque")
-        out.append(
-            Torque(
-                pulley=name,
-                mean_Nm=_arr(_num(t, "mean_Nm", "torque", required=False, default=0.0)),
-                amplitude_Nm=_arr(_num(t, "amplitude_Nm", "torque", required=False, default=0.0)),
-                frequency_hz=_arr(_num(t, "frequency_hz", "torque", required=False, default=0.0)),
-                phase_deg=_arr(_num(t, "phase_deg", "torque", required=False, default=0.0)),
-                t_start_s=t0,
-                t_end_s=t1,
-            )
+        load = Torque(
+            pulley=name,
+            mean_Nm=_arr(_num(t, "mean_Nm", "torque", required=False, default=0.0)),
+            amplitude_Nm=_arr(_num(t, "amplitude_Nm", "torque", required=False, default=0.0)),
+            frequency_hz=_arr(_num(t, "frequency_hz", "torque", required=False, default=0.0)),
+            phase_deg=_arr(_num(t, "phase_deg", "torque", required=False, default=0.0)),
+            t_start_s=t0,
+            t_end_s=t1,
         )
+        out.append(_amplitude_needs_frequency(t, "amplitude_Nm", load))
     return tuple(out)
 
 
@@ -353,18 +351,16 @@ def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLo
         if not 1 <= node <= n_elements - 1:
             t.fail("node", f"must be an interior node, 1 to {n_elements - 1} (elements_per_span - 1), got {node!r}")
         t0, t1 = _window(t, "span_load")
-        _amplitude_needs_frequency(t, "amplitude_N", "span_load")
-        out.append(
-            SpanLoad(
-                span=name,
-                node=node,
-                amplitude_N=_arr(_num(t, "amplitude_N", "span_load")),
-                frequency_hz=_arr(_num(t, "frequency_hz", "span_load")),
-                phase_deg=_arr(_num(t, "phase_deg", "span_load", required=False, default=0.0)),
-                t_start_s=t0,
-                t_end_s=t1,
-            )
+        load = SpanLoad(
+            span=name,
+            node=node,
+            amplitude_N=_arr(_num(t, "amplitude_N", "span_load")),
+            frequency_hz=_arr(_num(t, "frequency_hz", "span_load")),
+            phase_deg=_arr(_num(t, "phase_deg", "span_load", required=False, default=0.0)),
+            t_start_s=t0,
+            t_end_s=t1,
         )
+        out.append(_amplitude_needs_frequency(t, "amplitude_N", load))
     return tuple(out)
 
 
