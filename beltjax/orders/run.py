@@ -44,6 +44,15 @@ STATUS = ("not_converged", "supercritical", "solver_failed", "span_slack", "not_
 FLAGS_KEEPING_NUMBERS = ("span_slack", "not_settled")
 
 
+def settle_problem(settle_s) -> str | None:
+    """What is wrong with a settling time ``settle_s`` (s) per speed, or None: the check of
+    ``beltjax orders`` and of a sweep's ``settle_s``."""
+    if not (math.isfinite(settle_s) and 0 <= settle_s <= MAX_SETTLE_S):
+        return (f"must be a finite time in [0, {MAX_SETTLE_S:g}] s (a drive still moving after {MAX_SETTLE_S:g} s "
+                f"has no steady state to report), got {settle_s!r}")
+    return None
+
+
 class OrdersError(BeltjaxError):
     """A response over speed that cannot be run (one-line message naming the key)."""
 
@@ -246,9 +255,9 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     if given.method not in METHODS:
         raise OrdersError(f"method: {given.method!r}; choose one of {', '.join(METHODS)}", "method")
     check(scene, rpm)
-    if not (math.isfinite(settle_s) and 0 <= settle_s <= MAX_SETTLE_S):
-        raise OrdersError(f"settle_s: must be a finite time in [0, {MAX_SETTLE_S:g}] s (a drive still moving after "
-                          f"{MAX_SETTLE_S:g} s has no steady state to report), got {settle_s!r}", "settle_s")
+    problem = settle_problem(settle_s)
+    if problem:
+        raise OrdersError(problem, "settle_s")
     values = dict(values or {})
     for k, val in values.items():
         parameters.check(scene, k)

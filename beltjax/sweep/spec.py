@@ -269,11 +269,10 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
     elif "rpm" in data:
         raise SweepError("given but \"campbell\" is not in outputs", "rpm")
     settle_s = top.number("settle_s", required=False, default=1.0, nonnegative=True)
-    from beltjax.orders.run import MAX_SETTLE_S
+    from beltjax.orders.run import settle_problem
 
-    if settle_s > MAX_SETTLE_S:
-        raise SweepError(f"must be at most {MAX_SETTLE_S:g} s (a drive still moving after it has no steady state "
-                         f"to report), got {settle_s!r}", "settle_s")
+    if settle_problem(settle_s):
+        raise SweepError(settle_problem(settle_s), "settle_s")
     if "settle_s" in data and "response" not in outputs:
         raise SweepError("given but \"response\" is not in outputs", "settle_s")
     chunk = top.integer("chunk", required=False, minimum=1)
