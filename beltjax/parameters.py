@@ -54,7 +54,7 @@ _DRIVE_ONLY = ("speed_rpm",)
 _DRIVEN_ONLY = ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz")
 _TENSIONER = ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_mass",
               "pulley_inertia", "spring_stiffness", "spring_preload_deg", "arm_cm_distance", "damping",
-              "friction_moment", "friction_asymmetry", "friction_speed", "stop_min_deg", "stop_max_deg",
+              "friction_moment", "friction_asymmetry", "friction_speed", "friction_stick_time", "stop_min_deg", "stop_max_deg",
               "stop_stiffness")
 
 

@@ -135,6 +135,8 @@ FIELDS: dict[str, Field] = {
                                           "tensioner_friction"),
     "tensioner.friction_speed": Field("rad/s", 1e-6, 10.0, "the regularisation: far below the arm's speeds", ">0",
                                       "tensioner_friction"),
+    "tensioner.friction_stick_time": Field("s", 1e-7, 0.1, "the regularisation: far below the forcing's periods",
+                                           ">0", "tensioner_friction"),
     "tensioner.stop_min_deg": _ANGLE,
     "tensioner.stop_max_deg": _ANGLE,
     "tensioner.stop_stiffness": Field("N m/rad", 1e-6, 1e9, "a contact stiffer than the spring", ">0"),

@@ -23,23 +23,24 @@ from beltjax.scene import loads_scene
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-def _pivot(Tf, a=1.0, w_r=1e-3, k=1.0, theta0_deg=0.0, stops=(None, None), ks=1e4):
+def _pivot(Tf, a=1.0, w_r=1e-3, k=1.0, theta0_deg=0.0, stops=(None, None), ks=1e4, tau=1e-4):
     return types.SimpleNamespace(friction_moment=Tf, friction_asymmetry=a, friction_speed=w_r, spring_stiffness=k,
                                  spring_preload_deg=theta0_deg, stop_min_deg=stops[0], stop_max_deg=stops[1],
-                                 stop_stiffness=ks)
+                                 stop_stiffness=ks, friction_stick_time=tau)
 
 
 @jax.jit
 def _solve(p):
     """The forced Coulomb oscillator with the pivot's friction law over six periods from state
-    y0; p = (P, F, k, m, w, w_r, phi, X0): one compilation for every case."""
-    P, F, k, m, w, w_r, phi, X0 = p
-    t = _pivot(F, w_r=w_r)
+    y0; p = (P, F, k, m, w, w_r, tau, phi, X0): one compilation for every case."""
+    P, F, k, m, w, w_r, tau, phi, X0 = p
+    t = _pivot(F, w_r=w_r, tau=tau)
 
     def f(time, y, args):
         x, v, e = y
-        fr = pivot.friction_moment(v, x, t)
-        return jnp.stack([v, (P * jnp.cos(w * time + phi) - k * x + fr) / m, -fr * v])
+        a0 = (P * jnp.cos(w * time + phi) - k * x) / m  # the acceleration without friction
+        fr = pivot.friction_moment(v, x, a0, 1.0 / m, t)
+        return jnp.stack([v, a0 + fr / m, -fr * v])
 
     T = 2 * jnp.pi / w
     ts = 6 * T * jnp.linspace(5.0 / 6.0, 1.0, 2001)
@@ -49,44 +50,62 @@ def _solve(p):
     return sol.ys
 
 
-def _oscillate(P, F, k, m, w, w_r):
-    """The oscillator from Den Hartog's periodic state: (exact amplitude, the last period's
-    amplitude, its friction work (J))."""
-    X0, phi = pivot.den_hartog(P, F, k, m, w)
-    ys = np.asarray(_solve(jnp.array([P, F, k, m, w, w_r, phi, X0])))
+def _oscillate(P, F, k, m, w, w_r, tau, X0=None):
+    """The oscillator from Den Hartog's periodic state (or from rest at X0): (exact amplitude, the
+    last period's amplitude, its friction work (J), its mean position)."""
+    X_dh, phi = pivot.den_hartog(P, F, k, m, w) if X0 is None else (None, 0.0)
+    ys = np.asarray(_solve(jnp.array([P, F, k, m, w, w_r, tau, phi, X_dh if X0 is None else X0])))
     x, e = ys[:, 0], ys[:, 2]
-    return X0, 0.5 * (x.max() - x.min()), e[-1] - e[0]
+    return X_dh, 0.5 * (x.max() - x.min()), e[-1] - e[0], x.mean()
 
 
 @pytest.mark.parametrize("r, ratio", [(0.8, 0.2), (1.6, 0.3)])
 def test_den_hartog_amplitude_and_energy_per_cycle(r, ratio):
-    """The regularised law (omega_r a thousandth of the peak speed) gives Den Hartog's exact
-    steady amplitude to 0.2 %, and the energy dissipated per cycle is 4 F X0 to 0.2 %."""
+    """The regularised law (omega_r a thousandth of the peak speed, tau a ten-thousandth of the
+    period) gives Den Hartog's exact steady amplitude to 0.2 %, and the energy dissipated per
+    cycle is 4 F X0 to 0.2 %."""
     k, m, P = 1.0, 1.0, 1.0
     w = r * math.sqrt(k / m)
     X0 = pivot.den_hartog(P, ratio * P, k, m, w)[0]
-    exact, amp, work = _oscillate(P, ratio * P, k, m, w, w_r=1e-3 * w * X0)
+    exact, amp, work, _ = _oscillate(P, ratio * P, k, m, w, w_r=1e-3 * w * X0, tau=1e-4 * 2 * math.pi / w)
     assert amp == pytest.approx(exact, rel=2e-3)
     assert work == pytest.approx(4 * ratio * P * amp, rel=2e-3)
 
 
-def test_regularisation_error_shrinks_with_the_speed():
-    """The amplitude error of the regularisation falls as omega_r does (measured, not assumed)."""
+@pytest.mark.parametrize("which", ["w_r", "tau"])
+def test_regularisation_error_shrinks(which):
+    """The amplitude error of the regularisation falls as omega_r and as tau do (measured, not
+    assumed).  Measured here, the error is about the lesser of 0.38 omega_r / (w X0) and
+    2.7 tau / T: the reversal is Coulomb's if either is small, so each is varied with the other
+    large (a tenth of the peak speed, of the period)."""
     k, m, P, F, w = 1.0, 1.0, 1.0, 0.3, 1.6
     X0 = pivot.den_hartog(P, F, k, m, w)[0]
-    errs = [abs(_oscillate(P, F, k, m, w, w_r=q * w * X0)[1] / X0 - 1) for q in (1e-1, 1e-2)]
+    T = 2 * math.pi / w
+    errs = []
+    for q in ((1e-1, 1e-2) if which == "w_r" else (1e-2, 1e-3)):
+        w_r, tau = (q * w * X0, 1e-1 * T) if which == "w_r" else (1e-1 * w * X0, q * T)
+        errs.append(abs(_oscillate(P, F, k, m, w, w_r=w_r, tau=tau)[1] / X0 - 1))
     assert errs[1] < 0.3 * errs[0]
+
+
+def test_a_held_oscillator_does_not_creep():
+    """A friction band above the force's amplitude holds the mass where it starts: it stays
+    there (the regularised tanh law this replaced let it creep at a speed set by omega_r)."""
+    k, m, P, F, w = 1.0, 1.0, 1.0, 1.5, 1.6
+    _, amp, work, mean = _oscillate(P, F, k, m, w, w_r=1e-2, tau=1e-2, X0=0.2)
+    assert amp < 1e-6 and abs(mean - 0.2) < 1e-6  # the spring's 0.2 N is inside the band too
+    assert abs(work) < 1e-9
 
 
 def test_asymmetric_band():
     """Loading (moving away from the free angle) takes a times the unloading moment; the mean is T_f."""
     t = _pivot(2.0, a=3.0, w_r=1e-6, theta0_deg=0.0)
-    load = float(-pivot.friction_moment(1.0, 0.5, t))     # theta > theta_0, moving away
-    unload = float(pivot.friction_moment(-1.0, 0.5, t))   # moving back towards it
+    load = float(-pivot.friction_moment(1.0, 0.5, 0.0, 1.0, t))     # theta > theta_0, moving away
+    unload = float(pivot.friction_moment(-1.0, 0.5, 0.0, 1.0, t))   # moving back towards it
     assert load / unload == pytest.approx(3.0, rel=1e-9)
     assert 0.5 * (load + unload) == pytest.approx(2.0, rel=1e-9)
     # the same below the free angle, mirrored
-    assert float(pivot.friction_moment(-1.0, -0.5, t)) == pytest.approx(load, rel=1e-9)
+    assert float(pivot.friction_moment(-1.0, -0.5, 0.0, 1.0, t)) == pytest.approx(load, rel=1e-9)
 
 
 def test_stops_are_conservative_and_only_outside():
@@ -127,8 +146,9 @@ def test_pasted_fit_block_reproduces_the_torque_angle_loop():
     ts = np.linspace(0.0, 10.0, 2001)  # one 0.1 Hz cycle over the fitted range
     theta = np.deg2rad(0.5 * (lo + hi) + 0.4 * (hi - lo) * np.sin(2 * np.pi * 0.1 * ts))
     omega = np.gradient(theta, ts)
-    model = np.asarray(pivot.elastic_moment(jnp.asarray(theta), t) + pivot.friction_moment(jnp.asarray(omega),
-                                                                                            jnp.asarray(theta), t))
+    # a prescribed motion: the arm slides, so the moment is the band's edge whatever holds it
+    model = np.asarray(pivot.elastic_moment(jnp.asarray(theta), t) + pivot.friction_moment(
+        jnp.asarray(omega), jnp.asarray(theta), 0.0, 1.0, t))
     sliding = np.abs(omega) > 5 * float(t.friction_speed)
     fitted = res.predict(np.rad2deg(theta), np.sign(omega))
     assert np.max(np.abs(model - fitted)[sliding]) < 1e-3 * np.ptp(fitted)
@@ -147,6 +167,7 @@ def _fead(extra_tensioner: str = "", effect: bool = True) -> str:
     ("stop_min_deg = 85.0\nstop_max_deg = 90.0", "tensioner.stop_min_deg"),
     ("stop_min_deg = 60.0\nstop_max_deg = 50.0", "tensioner.stop_max_deg"),
     ("friction_speed = 0.0", "tensioner.friction_speed"),
+    ("friction_stick_time = -1e-4", "tensioner.friction_stick_time"),
 ])
 def test_bad_pivot_inputs_name_the_key(extra, key):
     with pytest.raises(BeltjaxError) as e:
@@ -180,3 +201,48 @@ def test_a_stop_that_holds_the_installed_arm_is_refused():
     with pytest.raises(statics.StaticsError) as e:
         analyse_statics(loads_scene(text), loaded=False)
     assert e.value.key == "tensioner.stop_max_deg"
+
+
+@pytest.mark.parametrize("fidelity", ["rotational", "ancf"])
+def test_drive_friction_holds_or_slides_with_the_band(fidelity):
+    """In the drive's equations (both fidelities' structured solves), the friction is one moment
+    at the arm: M_ii q_i'' - F_ii (the dense equations without it) is zero but for the arm's row.
+    A band wider than the arm's load holds it (its acceleration is -omega / tau: it comes to rest,
+    no creep); an arm sliding faster than omega_r takes the band's edge, T_f (1 + D / T_f s)."""
+    import dataclasses
+
+    from beltjax import drive
+
+    sc = loads_scene((ROOT / "scenes" / "tensioner_bench_stage2.toml").read_text().replace(
+        'effects = [', 'effects = ["tensioner_friction", ', 1).replace(
+        "[tensioner]", "[tensioner]\nfriction_moment = 1.0\nfriction_asymmetry = 3.0\nfriction_stick_time = 1e-3", 1))
+    sc = drive.canonical(dataclasses.replace(sc, model=dataclasses.replace(sc.model, fidelity=fidelity,
+                                                                             elements_per_span=1)))
+    inst = statics.install(sc)
+    n = drive.n_independent(sc)
+    arm = drive.n_rigid(sc) - 1
+    rng = np.random.default_rng(3)
+    qi = drive.installed_coordinates(sc, inst) + 1e-4 * jnp.asarray(rng.standard_normal(n))
+    rm = drive.reduced_mass(sc, inst)
+
+    @jax.jit
+    def residual(qd, Tf):
+        s = dataclasses.replace(sc, tensioner=dataclasses.replace(sc.tensioner, friction_moment=Tf))
+        a = drive.reduced_accelerations(qi, qd, s, inst, rm, t=0.01)
+        M, F = drive.reduced_system(qi, qd, s, inst, t=0.01)
+        return a, M @ a - F, jnp.max(jnp.abs(F))
+
+    for w_arm, Tf, held in ((1e-4, 50.0, True), (3.0, 1.0, False), (-3.0, 1.0, False)):
+        qd = jnp.zeros(n).at[arm].set(w_arm)
+        a, r, scale = residual(qd, Tf)
+        assert np.max(np.abs(np.delete(np.asarray(r), arm))) < 1e-9 * float(scale)
+        m = float(r[arm])  # the friction moment the drive applied (N m)
+        if held:
+            assert float(a[arm]) == pytest.approx(-w_arm / 1e-3, rel=1e-6)
+            assert abs(m) < 50.0
+        else:
+            t = sc.tensioner
+            s = math.copysign(1.0, float(inst.arm_angle + qi[arm]) - math.radians(float(t.spring_preload_deg)))
+            D = Tf * (3.0 - 1.0) / (3.0 + 1.0)
+            edge = -(Tf + D * s) if w_arm > 0 else Tf - D * s
+            assert m == pytest.approx(edge, rel=1e-6)

@@ -5,9 +5,11 @@ fields that name it (:data:`beltjax.schema.FIELDS`, a field's ``effect``: the on
 serves scene parsing, parameter paths and sweep and optimisation bounds).  It contributes through
 one small interface: a span's potential (J), a span's generalised forces (N), the bodies' forces
 (N, N m) in transients and in steady states, the bodies' positions (m), the drive pulley's
-angle (rad).  An effect that is not listed is not in the assembly and adds nothing (not even a
-zero) to any traced program: :func:`effects_of` is the one place where the names in
-``model.effects`` are switched, and the one place that maps a name to a module.
+angle (rad), and a force that depends on the accelerations themselves (N m: the transient's
+accelerations as a function of added generalised forces).  An effect that is not listed is not
+in the assembly and adds nothing (not even a zero) to any traced program: :func:`effects_of` is
+the one place where the names in ``model.effects`` are switched, and the one place that maps a
+name to a module.
 
 Effects (units of the parameters they own):
 
@@ -21,7 +23,8 @@ Effects (units of the parameters they own):
 - ``speed_fluctuation``: pulley.fluctuation_amplitude_deg / _frequency_hz, a harmonic
   fluctuation of a driven pulley's angle.
 - ``tensioner_friction``: tensioner.friction_moment (N m), friction_asymmetry (-),
-  friction_speed (rad/s): dry friction at the tensioner pivot (:mod:`beltjax.drive.pivot`).
+  friction_speed (rad/s), friction_stick_time (s): dry friction at the tensioner pivot
+  (:mod:`beltjax.drive.pivot`), a moment that depends on the accelerations.
 - ``belt_slip``: belt.slip_speed (m/s): creep and gross slip of the belt on every wrapped arc,
   three states per arc in the transient (:mod:`beltjax.drive.belt_slip`; rotational model), and
   the running belt's compatibility in the operating point (:func:`beltjax.statics.equilibrium`).
@@ -104,6 +107,12 @@ class Effect(eqx.Module):
         """What this effect adds to the drive pulley's angle (rad) at time t (s), ``angle`` its
         mean rotation (rad), ``speed_rpm`` its nominal speed then (rpm); None for nothing."""
         return None
+
+    def accelerations(self, acc, qi, qi_dot, scene: Scene, inst, t):
+        """The transient's accelerations as a function of added generalised forces Q (n_i,; N,
+        N m; or None), given ``acc``, the drive's own such function: this effect's force where it
+        depends on the accelerations themselves (a constraint-like force); ``acc`` for nothing."""
+        return acc
 
 
 @functools.lru_cache(maxsize=None)
@@ -223,17 +232,36 @@ class TensionerDamping(Effect):
 
 
 class TensionerFriction(Effect):
-    """Dry friction at the tensioner pivot: regularised, optionally asymmetric Coulomb
-    (:func:`beltjax.drive.pivot.friction_moment`; N m)."""
+    """Dry friction at the tensioner pivot: optionally asymmetric Coulomb by a regularised switch
+    model (:func:`beltjax.drive.pivot.friction_moment`; N m), which needs the arm's acceleration
+    without it and its effective inertia: both from the drive's own solve, which is affine in the
+    moment (one forward tangent gives M_ii^-1 g, g the arm's row of the kinematic map)."""
 
     name: ClassVar[str] = "tensioner_friction"
 
-    def body_forces(self, f, bodies, bodies_dot, scene, t):
-        # steady states (bodies None: the arm at rest) take no friction moment: the arm may rest
+    def accelerations(self, acc, qi, qi_dot, scene, inst, t):
+        # steady states (t None: the arm at rest) take no friction moment: the arm may rest
         # anywhere inside its friction band, and the operating point is the frictionless one
-        if scene.tensioner is None or bodies is None:
-            return f
-        return f.at[-1, 2].add(pivot.friction_moment(bodies_dot[-1, 2], bodies[-1, 2], scene.tensioner))
+        if scene.tensioner is None or t is None:
+            return acc
+        from beltjax.drive.layouts import layout_of
+        from beltjax.drive.topology import n_rigid
+
+        nr = n_rigid(scene)
+        arm = lambda x: layout_of(scene).arm_angle(x[:nr], inst)  # noqa: E731  (rad)
+        g = jax.grad(arm)(qi)  # the arm's row of the kinematic map: its moment's generalised force
+        omega = g @ qi_dot
+
+        def with_friction(Q):
+            # the accelerations are affine in the friction moment m: q'' = q''_0 + m c, with
+            # c = M_ii^-1 g from the same solve (one forward tangent)
+            out, d = jax.jvp(lambda m: acc(m * g if Q is None else Q + m * g), (jnp.zeros_like(omega),),
+                             (jnp.ones_like(omega),))
+            a0, c = (out[0], d[0]) if isinstance(out, tuple) else (out, d)
+            m = pivot.friction_moment(omega, arm(qi), g @ a0, g @ c, scene.tensioner)
+            return jax.tree_util.tree_map(lambda x, dx: x + m * dx, out, d)
+
+        return with_friction
 
 
 class BeltSlip(Effect):
@@ -351,6 +379,14 @@ class Effects(eqx.Module):
             d = x.drive_angle(angle, pulley, t, scene, speed_rpm)
             out = out if d is None else out + d
         return out
+
+    def accelerations(self, acc, qi, qi_dot, scene, inst, t):
+        """q_i'' (rad/s^2, m/s^2; with slip states, (q_i'', their rates m/s)) of a transient at
+        time t (s; None: a steady state) from ``acc``, the drive's accelerations as a function of
+        added generalised forces Q (n_i,) or None, with the listed effects that act through them."""
+        for x in self.listed:
+            acc = x.accelerations(acc, qi, qi_dot, scene, inst, t)
+        return acc(None)
 
     def unlisted_parameters(self, scene: Scene) -> list[tuple[str, str]]:
         """(key, effect) of every parameter given while its effect is not listed."""

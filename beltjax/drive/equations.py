@@ -14,6 +14,7 @@ from beltjax import ancf, span
 from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, drive_pulley, element_length, n_rigid, n_span_coordinates, travel_coordinate, travel_follows_drive
 from beltjax.drive.spans import spans_of
+from beltjax.drive.effects import effects_of
 from beltjax.drive.kinematics import belt_travel, full_coordinates, split_full
 from beltjax.drive.forces import full_forces, full_mass_matrix, mean_body_loads, span_mass_blocks
 
@@ -90,7 +91,8 @@ def reduced_system(qi, qi_dot, scene: Scene, inst: Installation, speed=0.0, M_fu
     qi, qi_dot: independent coordinates and rates; speed: belt speed (m/s) when ``t`` is
     None (steady motion).  t: time (s) of a transient: the map is then Phi(q_i, t), the
     belt speed and its rate follow :func:`belt_travel`, and the damping effects and loads
-    act.  Returns (M_ii, F_ii) in kg / kg m^2 and N / N m.
+    act.  Returns (M_ii, F_ii) in kg / kg m^2 and N / N m.  The pivot's dry friction is not in
+    F_ii: it depends on the accelerations and acts through :func:`reduced_accelerations`.
     """
     M = full_mass_matrix(scene, inst) if M_full is None else M_full
     q, v, gamma, J, F = full_motion(qi, qi_dot, scene, inst, speed, t)
@@ -181,12 +183,16 @@ def reduced_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Redu
     :func:`beltjax.drive.rotational.bar_accelerations`.  The span
     component chooses (:meth:`beltjax.drive.spans.SpanModel.accelerations`).  With slip states
     ``slip`` (m, effect ``belt_slip``: :mod:`beltjax.drive.belt_slip`) it returns
-    (q_i'', the slip rates m/s).
+    (q_i'', the slip rates m/s).  The listed effects that depend on the accelerations (the
+    pivot's dry friction) act here, on the span component's accelerations under added
+    generalised forces (:meth:`beltjax.drive.effects.Effects.accelerations`).
     """
-    return spans_of(scene).accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip)
+    spans = spans_of(scene)
+    return effects_of(scene).accelerations(
+        lambda Q: spans.accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip, Q), qi, qi_dot, scene, inst, t)
 
 
-def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0):
+def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0, Q=None):
     """:func:`reduced_accelerations` of a drive with massive (ANCF) spans, by the Schur complement
     (every such span has span coordinates: at least one element of 4 N independent ones)."""
     nr = n_rigid(scene)
@@ -201,6 +207,8 @@ def schur_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: Reduce
     ti = travel_inertia(q, v, gamma, scene, inst, t, rm.BC)
     M_rr, F_r = with_travel_inertia(M_rr, F_r, J_r, ti)
     F_s = r[idx]
+    if Q is not None:  # generalised forces from outside (the pivot's friction: reduced_accelerations)
+        F_r, F_s = F_r + Q[:nr], F_s + Q[nr:]
     M_sr = MJ[idx]  # (n_span, n_rigid)
     if ti is not None:
         M_sr = M_sr.at[:, ti.k].add(ti.kappa * ti.P[idx])

@@ -8,29 +8,38 @@ one place: the spring with its preload, the end stops, and dry friction.
   one, k_s ``stop_stiffness`` (N m/rad).  Conservative (a potential with a continuous first
   derivative), so the installation, the operating point and the modes see them too.  A scene
   without stops traces none of this.
-- **Dry friction** (effect ``tensioner_friction``): regularised Coulomb,
+- **Dry friction** (effect ``tensioner_friction``): Coulomb friction by a regularised switch
+  model (Karnopp 1985; Leine et al. 1998): the friction moment is whatever holds the arm, as
+  long as it lies inside the friction band, and the band's edge while the arm slides,
 
-      M_f(omega, theta) = -tanh(omega / omega_r) (T_f + D tanh(omega / omega_r) sign(theta - theta_0)),
-      D = T_f (a - 1) / (a + 1),
+      M_f = clip(-(theta''_0 + omega / tau) J_eff, lo(omega), hi(omega)),
+      band at rest [-(T_f + D s), T_f - D s], s = sign(theta - theta_0), D = T_f (a - 1) / (a + 1),
 
+  theta''_0 the arm's acceleration without the friction and J_eff its effective inertia (both
+  from the drive's own solve: :meth:`beltjax.drive.effects.TensionerFriction.accelerations`).
   T_f ``friction_moment`` (N m, the mean band: the half-width of the torque-angle loop that
   ``beltjax fit`` identifies), a ``friction_asymmetry`` (the moment while the arm winds the
   spring up, i.e. the belt pushes it away from its free angle, over the moment while the spring
-  returns it: T_f 2a / (1 + a) against T_f 2 / (1 + a)), omega_r ``friction_speed`` (rad/s).
-  Why this form: it has no state of its own (a bristle or LuGre model adds one per contact and a
-  pre-sliding stiffness that is a parameter nobody measures for tensioners; Dahl's bristle law,
-  tried, came no closer to the Coulomb limit for the explicit solver's steps than a larger
-  omega_r: benchmarks/README.md section 5g), it is smooth, so
-  gradients and implicit solvers see a Jacobian, and it slides at every speed: a stuck arm
-  creeps at the speed where tanh(omega / omega_r) T_f balances the net moment, which is below
-  omega_r.  What the regularisation changes is measured in tests/test_tensioner_friction.py
-  (Den Hartog's exact Coulomb oscillator) and stated in the README.
+  returns it: T_f 2a / (1 + a) against T_f 2 / (1 + a)), tau ``friction_stick_time`` (s: a
+  stuck arm's speed decays to zero at the rate 1 / tau instead of stopping at once), omega_r
+  ``friction_speed`` (rad/s: the band closes to the sliding moment as the arm's speed passes
+  omega_r, so sliding friction always opposes the motion).
+  Why this form: the regularised Coulomb law it replaced, -T_f tanh(omega / omega_r), has a
+  viscous slope T_f / omega_r at rest that makes the equations stiff wherever the arm sticks
+  (an explicit solver then needs thousands of steps per simulated second at any tolerance) and
+  lets a stuck arm creep; this law's only fast rate is 1 / tau, it does not creep, and it has no
+  state of its own (a bristle or LuGre model adds one per contact and a pre-sliding stiffness
+  nobody measures on tensioners; Dahl's law, tried, was no cheaper: benchmarks/README.md
+  section 5g).  Its edges are softened (softplus over 1e-3 of the band), so it is smooth for
+  gradients.  What tau and omega_r change is measured in tests/test_tensioner_friction.py (Den
+  Hartog's exact Coulomb oscillator) and benchmarks/bench_tensioner_friction.py.
 """
 
 from __future__ import annotations
 
 import math
 
+import jax
 import jax.numpy as jnp
 
 
@@ -55,14 +64,34 @@ def elastic_moment(theta, t):
     return spring_moment(theta, t) + stop_moment(theta, t)
 
 
-def friction_moment(omega, theta, t):
-    """Dry-friction moment on the arm (N m) at arm speed omega (rad/s) and angle theta (rad):
-    regularised Coulomb, optionally asymmetric (see the module docstring)."""
-    s = jnp.tanh(omega / t.friction_speed)
+def friction_moment(omega, theta, accel0, compliance, t):
+    """Dry-friction moment on the arm (N m) at arm speed omega (rad/s) and angle theta (rad),
+    given the arm's acceleration without it, accel0 (rad/s^2), and its compliance (rad/s^2 per
+    N m: the arm's row of M_ii^-1, 1 / its effective inertia): a regularised switch model.
+
+    The moment is the one that makes the arm's acceleration -omega / tau (tau
+    ``friction_stick_time``, s: a stuck arm's speed decays to zero at the rate 1 / tau), held inside the friction band: [-(T_f + D s),
+    T_f - D s] at rest (s = sign(theta - theta_0)), narrowing to the sliding moment -(T_f + D s)
+    for omega >> omega_r and T_f - D s for omega << -omega_r (the band's far edge moves by
+    tanh^2(omega / omega_r), so sliding friction never drives the arm).  The band's edges are
+    softened over 1e-3 of its width (softplus), so the moment is smooth.
+    """
     a = t.friction_asymmetry
     D = t.friction_moment * (a - 1.0) / (a + 1.0)
     loading = jnp.sign(theta - jnp.deg2rad(t.spring_preload_deg))
-    return -s * (t.friction_moment + D * s * loading)
+    up = t.friction_moment + D * loading    # resisting omega > 0
+    down = t.friction_moment - D * loading  # resisting omega < 0
+    band = up + down
+
+    def closing(x):  # 0 at rest and against the motion, -> 1 when sliding
+        return jnp.where(x > 0, jnp.tanh(x) ** 2, 0.0)
+
+    hi = down - band * closing(omega / t.friction_speed)
+    lo = -up + band * closing(-omega / t.friction_speed)
+    needed = -(accel0 + omega / t.friction_stick_time) / compliance
+    w = jnp.maximum(1e-3 * band, 1e-12)
+    soft = lambda x: w * jax.nn.softplus(x / w)  # noqa: E731
+    return lo + soft(needed - lo) - soft(needed - hi)
 
 
 def den_hartog(P, F, k, m, w):

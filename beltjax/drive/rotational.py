@@ -20,7 +20,8 @@ from beltjax.drive.topology import Installation, element_length
 from beltjax.drive.equations import ReducedMass, _rim_transport_speed, _small_matmul_tn, _small_spd_solve, transport_speed
 
 
-def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0, slip=None):
+def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedMass, t=None, speed=0.0, slip=None,
+                      Q=None):
     """:func:`reduced_accelerations` of the rotational model (rad/s^2), from the span lengths.
 
     Its spans are massless bars: their nodes carry no inertia, and their forces reach q_i
@@ -69,6 +70,8 @@ def bar_accelerations(qi, qi_dot, scene: Scene, inst: Installation, rm: ReducedM
                  in_axes=(0, None if rate is None else 0, 0))(l, rate, L0)
     F_b = body_forces(B, scene, inst, None if steady else B_dot, None if steady else tt).reshape(-1)
     F_i = J_b.transpose_times(F_b - rm.m_body * gamma_b) - _small_matmul_tn(J_l, N)
+    if Q is not None:  # generalised forces from outside (the pivot's friction: reduced_accelerations)
+        F_i = F_i + Q
     acc = _rigid_solve(J_b, rm.m_body, F_i)
     return acc if slip is None else (acc, z_dot)
 

@@ -91,9 +91,10 @@ class SpanModel(eqx.Module):
         """Mean axial force of each span (N), E (n, 4 (N+1)) span coordinates, Le (n,) m."""
         raise NotImplementedError
 
-    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
+    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None, Q=None):
         """The drive's reduced accelerations q_i'' (rad/s^2, m/s^2) with these spans; with the
-        belt's slip states ``slip`` (m, :mod:`beltjax.drive.belt_slip`), (q_i'', their rates m/s)."""
+        belt's slip states ``slip`` (m, :mod:`beltjax.drive.belt_slip`), (q_i'', their rates m/s).
+        Q (n_i,): generalised forces (N, N m) added to the drive's own, or None."""
         raise NotImplementedError
 
 
@@ -162,12 +163,12 @@ class AncfSpans(SpanModel):
     def tensions(self, E, EA, Le):
         return jnp.stack([jnp.mean(tension_profile(E[s], EA, Le[s], self.n_elements)) for s in range(E.shape[0])])
 
-    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
+    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None, Q=None):
         from beltjax.drive.equations import schur_accelerations
 
         if slip is not None:  # (belt_slip.check refuses the effect on this fidelity)
             raise NotImplementedError("belt slip states are built for the rotational model's bars")
-        return schur_accelerations(qi, qi_dot, scene, inst, rm, t, speed)
+        return schur_accelerations(qi, qi_dot, scene, inst, rm, t, speed, Q)
 
 
 class BarSpans(SpanModel):
@@ -212,10 +213,10 @@ class BarSpans(SpanModel):
         lam = jnp.linalg.norm(E[:, 4:6] - E[:, 0:2], axis=1) / Le
         return ancf.axial_force(lam, EA)
 
-    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None):
+    def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None, Q=None):
         from beltjax.drive.rotational import bar_accelerations
 
-        return bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip)
+        return bar_accelerations(qi, qi_dot, scene, inst, rm, t, speed, slip, Q)
 
 
 def bar_energy(l2, L0, EA, rhoA, c):

@@ -92,6 +92,7 @@ _TENSIONER_KEYS = (
     "friction_moment",
     "friction_asymmetry",
     "friction_speed",
+    "friction_stick_time",
     "stop_min_deg",
     "stop_max_deg",
     "stop_stiffness",
@@ -197,7 +198,9 @@ def _parse_tensioner(data, source) -> Tensioner:
     vals["arm_cm_distance"] = _arr(cm)
     vals.update(friction_moment=_arr(_num(t, "friction_moment", "tensioner", required=False, default=0.0)),
                 friction_asymmetry=_arr(_num(t, "friction_asymmetry", "tensioner", required=False, default=1.0)),
-                friction_speed=_arr(_num(t, "friction_speed", "tensioner", required=False, default=0.01)))
+                friction_speed=_arr(_num(t, "friction_speed", "tensioner", required=False, default=0.01)),
+                friction_stick_time=_arr(_num(t, "friction_stick_time", "tensioner", required=False,
+                                              default=3e-4)))
     lo = _num(t, "stop_min_deg", "tensioner", required=False)
     hi = _num(t, "stop_max_deg", "tensioner", required=False)
     if lo is not None and hi is not None and lo >= hi:

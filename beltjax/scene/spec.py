@@ -111,7 +111,8 @@ class Tensioner(eqx.Module):
     (about the arm's centre of mass), pulley_mass kg, pulley_inertia kg m^2,
     spring_stiffness N m/rad, spring_preload_deg deg, arm_angle_deg deg or None,
     arm_cm_distance m, damping N m s/rad; dry friction at the pivot (effect
-    ``tensioner_friction``): friction_moment N m, friction_asymmetry (-), friction_speed rad/s;
+    ``tensioner_friction``): friction_moment N m, friction_asymmetry (-), friction_speed rad/s,
+    friction_stick_time s;
     end stops: stop_min_deg / stop_max_deg deg or None, stop_stiffness N m/rad
     (:mod:`beltjax.drive.pivot`).
     """
@@ -131,6 +132,7 @@ class Tensioner(eqx.Module):
     friction_moment: jax.Array = 0.0
     friction_asymmetry: jax.Array = 1.0
     friction_speed: jax.Array = 0.01
+    friction_stick_time: jax.Array = 3e-4
     stop_min_deg: jax.Array | None = None
     stop_max_deg: jax.Array | None = None
     stop_stiffness: jax.Array = 1e4

@@ -73,6 +73,7 @@ def _tensioner(x) -> dict:
         _put(t, k, getattr(x, k))
     _put(t, "friction_asymmetry", x.friction_asymmetry, 1.0)
     _put(t, "friction_speed", x.friction_speed, 0.01)
+    _put(t, "friction_stick_time", x.friction_stick_time, 3e-4)
     _put(t, "stop_min_deg", x.stop_min_deg, None)
     _put(t, "stop_max_deg", x.stop_max_deg, None)
     _put(t, "stop_stiffness", x.stop_stiffness, 1e4)
