@@ -34,14 +34,7 @@ def _solve(p):
     """The forced Coulomb oscillator with the pivot's friction law over six periods from state
     y0; p = (P, F, k, m, w, w_r, tau, phi, X0): one compilation for every case."""
     P, F, k, m, w, w_r, tau, phi, X0 = p
-    t = _pivot(F, w_r=w_r, tau=tau)
-
-    def f(time, y, args):
-        x, v, e = y
-        a0 = (P * jnp.cos(w * time + phi) - k * x) / m  # the acceleration without friction
-        fr = pivot.friction_moment(v, x, a0, 1.0 / m, t)
-        return jnp.stack([v, a0 + fr / m, -fr * v])
-
+    f = pivot.coulomb_oscillator(P, k, m, w, phi, _pivot(F, w_r=w_r, tau=tau))
     T = 2 * jnp.pi / w
     ts = 6 * T * jnp.linspace(5.0 / 6.0, 1.0, 2001)
     sol = diffrax.diffeqsolve(diffrax.ODETerm(f), diffrax.Dopri8(), 0.0, 6 * T, T / 200,

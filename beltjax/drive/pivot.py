@@ -94,6 +94,19 @@ def friction_moment(omega, theta, accel0, compliance, t):
     return lo + soft(needed - lo) - soft(needed - hi)
 
 
+def coulomb_oscillator(P, k, m, w, phi, t):
+    """y' = f(time, y, args) of the forced Coulomb oscillator m x'' + k x = P cos(w time + phi) + M_f
+    with this module's friction law (``t``: the friction parameters, as a tensioner's), y = (x,
+    x', the friction's work done on it so far): the reference problem of :func:`den_hartog`."""
+    def f(time, y, args):
+        x, v, _ = y
+        a0 = (P * jnp.cos(w * time + phi) - k * x) / m  # the acceleration without friction
+        fr = friction_moment(v, x, a0, 1.0 / m, t)
+        return jnp.stack([v, a0 + fr / m, -fr * v])
+
+    return f
+
+
 def den_hartog(P, F, k, m, w):
     """The exact steady state of a Coulomb-damped oscillator m x'' + k x + F sgn(x') = P cos(w t
     + phi) without stops (Den Hartog 1930), the reference for the friction law: (X0 amplitude in
