@@ -56,6 +56,8 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         F = F - ti.kappa * qdd[ti.k] * ti.P
     c = drive.transient_transport_speed(scene, inst, v, t)[0]
     R = F - M_full @ a  # applied minus inertial: what the constraints must balance
+    # (F has no pivot friction, which acts through the accelerations: R's arm-rotation entry
+    # carries minus its moment; no bearing shift or drive angle moves that entry)
     # the bearings' reactions R . dPhi/dshift and the drives' holding torques -R . dPhi/d(driven
     # angle): one reverse pass for both (forward passes would take one per bearing axis and pulley)
     bearings, hold = jax.vjp(lambda s, d: phi(qi, t, s, d), shift0, drv0)[1](R)

@@ -63,7 +63,11 @@ def _git_commit() -> str | None:
         out = subprocess.run(
             ["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True, text=True, timeout=5
         )
-        return out.stdout.strip() or None
+        head = out.stdout.strip() or None
+        # uncommitted changes to the code measured: the commit alone would name code that did not run
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "beltjax", "identification"], cwd=HERE.parent,
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+        return f"{head}+uncommitted" if head and dirty else head
     except Exception:
         return None
 

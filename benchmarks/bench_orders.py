@@ -50,7 +50,13 @@ def main():
     ap.add_argument("--chunks", default="")
     ap.add_argument("--name", default="", help="results/<name>.json (default orders_<backend>)")
     ap.add_argument("--lock", default="", help="a lock file held while timing (benchmarks run side by side)")
+    ap.add_argument("--max-iterations", type=int, default=0,
+                    help="the shooting's most Newton iterations (default: beltjax.orders.shooting.MAX_ITERATIONS)")
     args = ap.parse_args()
+    if args.max_iterations:  # what the limit costs (benchmarks/README.md section 5g)
+        from beltjax.orders import shooting
+
+        shooting.MAX_ITERATIONS = args.max_iterations
     info = _common.machine_info()
     backend = jax.default_backend()
     print(_common.machine_line(info), flush=True)
@@ -105,7 +111,10 @@ def main():
             print(f"{name:<24} {row['method']:<9} {len(rpm):>6} {row['chunk']:>6} {row['first_call_s']:>10.1f}s "
                   f"{row['wall_s']:>8.1f}s {row['speeds_per_s']:>9.2f} {row['steps_min']:>5}-{row['steps_max']:<6} "
                   f"{row['settled']:>8} {row['flagged']:>8} {diff[0]:>12} {diff[1]:>13}", flush=True)
+    from beltjax.orders import shooting
+
     out = _common.save_json(args.name or f"orders_{backend}", dict(machine=info, backend=backend, rows=rows,
+                                                      max_iterations=shooting.MAX_ITERATIONS,
                                                       rpm=[float(rpm[0]), float(rpm[-1])], settle_s=1.0))
     print(f"wrote {out}")
 

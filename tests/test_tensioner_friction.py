@@ -99,6 +99,11 @@ def test_asymmetric_band():
     assert 0.5 * (load + unload) == pytest.approx(2.0, rel=1e-9)
     # the same below the free angle, mirrored
     assert float(pivot.friction_moment(-1.0, -0.5, 0.0, 1.0, t)) == pytest.approx(load, rel=1e-9)
+    # finite derivatives at rest and with no friction (the band's closing and edges are smooth there)
+    for Tf in (0.0, 2.0):
+        g = jax.grad(lambda w, T: pivot.friction_moment(w, 0.5, 3.0, 1.0, _pivot(T, a=3.0, w_r=1e-2)),
+                     argnums=(0, 1))(0.0, Tf)
+        assert all(np.isfinite(float(x)) for x in g)
 
 
 def test_stops_are_conservative_and_only_outside():
@@ -196,46 +201,95 @@ def test_a_stop_that_holds_the_installed_arm_is_refused():
     assert e.value.key == "tensioner.stop_max_deg"
 
 
-@pytest.mark.parametrize("fidelity", ["rotational", "ancf"])
-def test_drive_friction_holds_or_slides_with_the_band(fidelity):
-    """In the drive's equations (both fidelities' structured solves), the friction is one moment
-    at the arm: M_ii q_i'' - F_ii (the dense equations without it) is zero but for the arm's row.
-    A band wider than the arm's load holds it (its acceleration is -omega / tau: it comes to rest,
-    no creep); an arm sliding faster than omega_r takes the band's edge, T_f (1 + D / T_f s)."""
+def _bench_with_friction(fidelity: str, effects: str = ""):
     import dataclasses
 
     from beltjax import drive
 
     sc = loads_scene((ROOT / "scenes" / "tensioner_bench_stage2.toml").read_text().replace(
-        'effects = [', 'effects = ["tensioner_friction", ', 1).replace(
-        "[tensioner]", "[tensioner]\nfriction_moment = 1.0\nfriction_asymmetry = 3.0\nfriction_stick_time = 1e-3", 1))
-    sc = drive.canonical(dataclasses.replace(sc, model=dataclasses.replace(sc.model, fidelity=fidelity,
+        'effects = [', 'effects = ["tensioner_friction", ' + effects, 1).replace(
+        "[tensioner]", "[tensioner]\nfriction_moment = 1.0\nfriction_asymmetry = 3.0\nfriction_stick_time = 1e-3", 1
+    ).replace('fidelity = "ancf"', f'fidelity = "{fidelity}"', 1).replace(
+        "[belt]", "[belt]\nfriction_coefficient = 0.5" if "belt_slip" in effects else "[belt]", 1))
+    return drive.canonical(dataclasses.replace(sc, model=dataclasses.replace(sc.model, fidelity=fidelity,
                                                                              elements_per_span=1)))
+
+
+@pytest.mark.parametrize("fidelity", ["rotational", "ancf"])
+def test_drive_friction_holds_or_slides_with_the_band(fidelity):
+    """In the drive's equations (both fidelities' structured solves), the friction is one moment
+    at the arm: M_ii q_i'' - F_ii (the dense equations without it) is zero but for the arm's row,
+    and that row is the switch law on the dense equations' own numbers: the moment that makes the
+    arm's acceleration -omega / tau, -(theta''_0 + omega / tau) J_eff with theta''_0 and 1 / J_eff
+    the arm's entries of M_ii^-1 F_ii and M_ii^-1 e_arm, held inside the band.  At rest the band
+    is [-(T_f + D s), T_f - D s] (a wide band holds the arm: its acceleration is -omega / tau,
+    it does not creep; a narrow one breaks away at its edge); sliding far faster than omega_r it
+    is the sliding edge, -(T_f + D s) or T_f - D s."""
+    import dataclasses
+
+    from beltjax import drive
+
+    sc = _bench_with_friction(fidelity)
     inst = statics.install(sc)
     n = drive.n_independent(sc)
     arm = drive.n_rigid(sc) - 1
     rng = np.random.default_rng(3)
     qi = drive.installed_coordinates(sc, inst) + 1e-4 * jnp.asarray(rng.standard_normal(n))
     rm = drive.reduced_mass(sc, inst)
+    t = sc.tensioner
+    s = math.copysign(1.0, float(inst.arm_angle + qi[arm]) - math.radians(float(t.spring_preload_deg)))
 
     @jax.jit
-    def residual(qd, Tf):
-        s = dataclasses.replace(sc, tensioner=dataclasses.replace(sc.tensioner, friction_moment=Tf))
-        a = drive.reduced_accelerations(qi, qd, s, inst, rm, t=0.01)
-        M, F = drive.reduced_system(qi, qd, s, inst, t=0.01)
-        return a, M @ a - F, jnp.max(jnp.abs(F))
+    def run(qd, Tf):
+        sT = dataclasses.replace(sc, tensioner=dataclasses.replace(sc.tensioner, friction_moment=Tf))
+        a = drive.reduced_accelerations(qi, qd, sT, inst, rm, t=0.01)
+        M, F = drive.reduced_system(qi, qd, sT, inst, t=0.01)
+        a0 = jnp.linalg.solve(M, F)[arm]
+        c = jnp.linalg.solve(M, jnp.zeros(n).at[arm].set(1.0))[arm]
+        return a, M @ a - F, jnp.max(jnp.abs(F)), -(a0 + qd[arm] / 1e-3) / c
 
-    for w_arm, Tf, held in ((1e-4, 50.0, True), (3.0, 1.0, False), (-3.0, 1.0, False)):
+    held = 0
+    for w_arm, Tf in ((1e-4, 50.0), (0.0, 50.0), (0.0, 1e-3), (3.0, 1.0), (-3.0, 1.0)):
         qd = jnp.zeros(n).at[arm].set(w_arm)
-        a, r, scale = residual(qd, Tf)
+        a, r, scale, needed = run(qd, Tf)
         assert np.max(np.abs(np.delete(np.asarray(r), arm))) < 1e-9 * float(scale)
         m = float(r[arm])  # the friction moment the drive applied (N m)
-        if held:
-            assert float(a[arm]) == pytest.approx(-w_arm / 1e-3, rel=1e-6)
-            assert abs(m) < 50.0
-        else:
-            t = sc.tensioner
-            s = math.copysign(1.0, float(inst.arm_angle + qi[arm]) - math.radians(float(t.spring_preload_deg)))
-            D = Tf * (3.0 - 1.0) / (3.0 + 1.0)
-            edge = -(Tf + D * s) if w_arm > 0 else Tf - D * s
-            assert m == pytest.approx(edge, rel=1e-6)
+        up, down = Tf * (1 + 0.5 * s), Tf * (1 - 0.5 * s)  # D = T_f (a - 1) / (a + 1) = T_f / 2 at a = 3
+        lo, hi = (-up, down) if w_arm == 0 or abs(w_arm) < 1e-3 else ((-up, -up) if w_arm > 0 else (down, down))
+        assert m == pytest.approx(float(np.clip(float(needed), lo, hi)), rel=1e-6, abs=1e-9 * Tf)
+        if lo < float(needed) < hi:  # held: the arm comes to rest
+            held += 1
+            assert float(a[arm]) == pytest.approx(-w_arm / 1e-3, abs=1e-9 * float(scale))
+    assert held == 2  # the wide band held the arm; the narrow one (1e-3 N m) let it break away
+
+
+def test_drive_friction_with_slip_states():
+    """With belt_slip's states (the accelerations returned beside the slip rates): the friction
+    leaves the slip rates alone and acts on the arm's row as without them (T_f = 0: the drive
+    without the effect)."""
+    import dataclasses
+
+    from beltjax import drive
+    from beltjax.drive import belt_slip
+
+    sc = _bench_with_friction("rotational", '"belt_slip", ')
+    bare = _bench_with_friction("rotational", '"belt_slip", ')
+    bare = dataclasses.replace(bare, model=dataclasses.replace(bare.model, effects=tuple(
+        e for e in bare.model.effects if e != "tensioner_friction")))
+    bare = dataclasses.replace(bare, tensioner=dataclasses.replace(bare.tensioner, friction_moment=0.0))
+    inst = statics.install(sc)
+    n = drive.n_independent(sc)
+    arm = drive.n_rigid(sc) - 1
+    rng = np.random.default_rng(4)
+    qi = drive.installed_coordinates(sc, inst) + 1e-4 * jnp.asarray(rng.standard_normal(n))
+    z = 1e-5 * jnp.asarray(rng.standard_normal(belt_slip.n_states(sc)))
+    rm = drive.reduced_mass(sc, inst)
+    qd = jnp.zeros(n).at[arm].set(2e-4)
+    go = jax.jit(lambda s: drive.reduced_accelerations(qi, qd, s, inst, rm, t=0.01, slip=z))
+    (a_b, z_b), (a_0, z_0) = go(bare), go(dataclasses.replace(sc, tensioner=dataclasses.replace(
+        sc.tensioner, friction_moment=0.0)))
+    (a_h, z_h) = go(dataclasses.replace(sc, tensioner=dataclasses.replace(sc.tensioner, friction_moment=50.0)))
+    np.testing.assert_allclose(a_0, a_b, rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(a_b))))
+    np.testing.assert_allclose(z_0, z_b, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(z_h, z_b, rtol=1e-12, atol=1e-15)
+    assert float(a_h[arm]) == pytest.approx(-2e-4 / 1e-3, rel=1e-6)  # held

@@ -66,6 +66,7 @@ def error_norm(err) -> jax.Array:
 #: that dry friction holds nearly all cycle walks to its place by tiny slips at the band's edge
 #: (Floquet multipliers 0.999-0.9997 on the eight-pulley drive at 3800-4500 rpm), where Newton
 #: took 8-10 iterations; with 8 those speeds fell to the settling transient, which needed 4 s
+#: (100 speeds: 63.3 s against 34.8 s; benchmarks/README.md section 5g)
 MAX_ITERATIONS = 12
 #: convergence: the state's change over one cycle against its range over the cycle (positions and
 #: speeds apart, as the settling residual :func:`beltjax.orders.steady._settling`)
