@@ -24,6 +24,7 @@ _SIM_CHANNELS = {
     "pulley_speeds_rpm": ("pulley speed", "rpm", 1.0, None),
     "arm_angle_deg": ("tensioner arm angle", "deg", 1.0, None),
     "spring_moment_Nm": ("tensioner spring moment", "N m", 1.0, None),
+    "pivot_friction_moment_Nm": ("tensioner friction moment", "N m", 1.0, None),
     "drive_torques_Nm": ("drive torque", "N m", 1.0, None),
     "node_displacements_m": ("node displacement", "m", 1e3, "mm"),
     "slip_margins": ("slip margin (capstan law)", "-", 1.0, None),
@@ -89,7 +90,7 @@ def plot_simulation(t, channels, columns, units, path, *, title=""):
     (x solid, y dashed); columns: name -> column labels (span, pulley or node names);
     units: name -> unit string (defaults from the channel name).  Panels, in this order,
     for the channels present: span_tensions_N, span_forces_N, hub_force_magnitudes_N,
-    pulley_speeds_rpm, arm_angle_deg, spring_moment_Nm, drive_torques_Nm,
+    pulley_speeds_rpm, arm_angle_deg, spring_moment_Nm, pivot_friction_moment_Nm, drive_torques_Nm,
     node_displacements_m (drawn in mm) and slip_margins.  A channel of more than
     :data:`MAX_OVERLAID` lines (a drive of many spans or pulleys) is drawn as small multiples,
     one panel per line, 4 to a row, each with its own scale.  At most about 20000 points per

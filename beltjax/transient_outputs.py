@@ -56,8 +56,8 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         F = F - ti.kappa * qdd[ti.k] * ti.P
     c = drive.transient_transport_speed(scene, inst, v, t)[0]
     R = F - M_full @ a  # applied minus inertial: what the constraints must balance
-    # (F has no pivot friction, which acts through the accelerations: R's arm-rotation entry
-    # carries minus its moment; no bearing shift or drive angle moves that entry)
+    # (F has no pivot friction, which acts through the accelerations: R carries minus its moment on
+    # the arm's rotation, which no bearing shift or drive angle moves; the moment is reported below)
     # the bearings' reactions R . dPhi/dshift and the drives' holding torques -R . dPhi/d(driven
     # angle): one reverse pass for both (forward passes would take one per bearing axis and pulley)
     bearings, hold = jax.vjp(lambda s, d: phi(qi, t, s, d), shift0, drv0)[1](R)
@@ -84,6 +84,12 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
     if scene.tensioner is not None:
         out["arm_angle_deg"] = jnp.rad2deg(theta)
         out["spring_moment_Nm"] = drive.spring_moment(theta, scene)
+        if "tensioner_friction" in effects_of(scene):
+            # the pivot's dry-friction moment acts through the accelerations, not in F: it is the
+            # arm's generalised force left over, J^T R = -g M_f with g the arm's unit column
+            m_f = -J_r[:, drive.n_rigid(scene) - 1] @ R
+            out["pivot_friction_moment_Nm"] = m_f
+            out["pivot_friction_power_W"] = -m_f * qd[drive.n_rigid(scene) - 1]  # the heat it makes
     if scene.isolator is not None:  # the isolator's moment on the crank's rim
         d = list(scene.route.order).index(scene.isolator.pulley)
         out["isolator_moment_Nm"] = couplings.isolator_moment(scene, B[d, 2], Bd[d, 2], t)
@@ -160,6 +166,8 @@ UNITS = dict(
     slip_speeds_m_s="m/s",
     creep_speeds_m_s="m/s",
     friction_power_W="W",
+    pivot_friction_moment_Nm="N m",
+    pivot_friction_power_W="W",
 )
 
 

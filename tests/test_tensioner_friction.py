@@ -293,3 +293,33 @@ def test_drive_friction_with_slip_states():
     np.testing.assert_allclose(z_0, z_b, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(z_h, z_b, rtol=1e-12, atol=1e-15)
     assert float(a_h[arm]) == pytest.approx(-2e-4 / 1e-3, rel=1e-6)  # held
+
+
+@pytest.mark.parametrize("fidelity", ["rotational", "ancf"])
+def test_outputs_report_the_pivot_friction(fidelity):
+    """The transient's outputs report the friction moment the equations applied (from the
+    constraint residual J^T R = -g M_f) and its heat -M_f omega: equal to the moment of the
+    dense equations' residual, the band's sliding edge here."""
+    from beltjax import drive
+    from beltjax.transient_outputs import _outputs_one
+
+    sc = _bench_with_friction(fidelity)
+    inst = statics.install(sc)
+    n = drive.n_independent(sc)
+    arm = drive.n_rigid(sc) - 1
+    qi = drive.installed_coordinates(sc, inst)
+    qd = jnp.zeros(n).at[arm].set(-3.0)  # sliding back: the moment is T_f - D s
+    rm = drive.reduced_mass(sc, inst)
+
+    @jax.jit
+    def both(y):
+        out = _outputs_one(0.01, y, sc, inst, drive.full_mass_matrix(sc, inst))
+        a = drive.reduced_accelerations(qi, qd, sc, inst, rm, t=0.01)
+        M, F = drive.reduced_system(qi, qd, sc, inst, t=0.01)
+        return out["pivot_friction_moment_Nm"], out["pivot_friction_power_W"], (M @ a - F)[arm]
+
+    m_out, p_out, m_eq = both(jnp.concatenate([qi, qd]))
+    s = math.copysign(1.0, float(inst.arm_angle) - math.radians(float(sc.tensioner.spring_preload_deg)))
+    assert float(m_out) == pytest.approx(float(m_eq), rel=1e-8)
+    assert float(m_out) == pytest.approx(1.0 - 0.5 * s, rel=1e-6)
+    assert float(p_out) == pytest.approx(3.0 * float(m_out), rel=1e-12)
