@@ -173,8 +173,8 @@ def simulation_table(res, summary) -> str:
     rows = []
     for name in ("span_tensions_N", "span_forces_N", "hub_force_magnitudes_N", "pulley_speeds_rpm",
                  "rotor_speeds_rpm", "decoupler_moments_Nm", "isolator_moment_Nm", "arm_angle_deg",
-                 "spring_moment_Nm", "pivot_friction_moment_Nm", "pivot_friction_power_W", "drive_torques_Nm", "node_displacements_m", "slip_margins", "slip_speeds_m_s",
-                 "creep_speeds_m_s", "friction_power_W"):
+                 "spring_moment_Nm", "pivot_friction_moment_Nm", "pivot_friction_power_W", "drive_torques_Nm",
+                 "node_displacements_m", "slip_margins", "slip_speeds_m_s", "creep_speeds_m_s", "friction_power_W"):
         if name not in summary["channels"]:
             continue
         for col, st in summary["channels"][name].items():

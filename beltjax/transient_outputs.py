@@ -86,10 +86,11 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         out["spring_moment_Nm"] = drive.spring_moment(theta, scene)
         if "tensioner_friction" in effects_of(scene):
             # the pivot's dry-friction moment acts through the accelerations, not in F: it is the
-            # arm's generalised force left over, J^T R = -g M_f with g the arm's unit column
-            m_f = -J_r[:, drive.n_rigid(scene) - 1] @ R
+            # arm's generalised force left over, J^T R = -g M_f (g the arm's row; a rigid coordinate)
+            g = drive.arm_row(qi, scene, inst)
+            m_f = -g[:nr] @ (J_r.T @ R)
             out["pivot_friction_moment_Nm"] = m_f
-            out["pivot_friction_power_W"] = -m_f * qd[drive.n_rigid(scene) - 1]  # the heat it makes
+            out["pivot_friction_power_W"] = -m_f * (g @ qd)  # the heat it makes
     if scene.isolator is not None:  # the isolator's moment on the crank's rim
         d = list(scene.route.order).index(scene.isolator.pulley)
         out["isolator_moment_Nm"] = couplings.isolator_moment(scene, B[d, 2], Bd[d, 2], t)

@@ -239,6 +239,22 @@ def table(headers: list[str], rows: list[list], title: str | None = None) -> str
     return "\n".join(lines)
 
 
+def dopri8_at(scene, rtol: float):
+    """``scene`` with its transient on Dopri8 at ``rtol`` and atol = 1e-3 rtol (the accuracy rows)."""
+    import dataclasses
+
+    return dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, solver="dopri8", rtol=rtol,
+                                                                     atol=1e-3 * rtol))
+
+
+def transient_error(res, ref, channels=("arm_angle_deg", "span_tensions_N")) -> float:
+    """The worst channel's max |x - x_ref| / ptp(x_ref) over the run's second half (the start's
+    transient left out: both runs start at the same state), of two ``transient.simulate`` results."""
+    half = ref.t >= 0.5 * ref.t[-1]
+    return max(float(np.max(np.abs(res.channels[k][half] - ref.channels[k][half]))
+                     / max(float(np.ptp(ref.channels[k][half])), 1e-300)) for k in channels if k in ref.channels)
+
+
 def _jsonable(x):
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}

@@ -20,13 +20,11 @@ from __future__ import annotations
 import _common  # noqa: F401  (sets OPENBLAS_NUM_THREADS before numpy/jax)
 
 import argparse
-import dataclasses
 import json
 import re
 import time
 from pathlib import Path
 
-import numpy as np
 
 from beltjax import drive, transient
 from beltjax.scene import loads_scene
@@ -58,29 +56,15 @@ REPEATS = 3
 ERROR_CHANNELS = ("arm_angle_deg", "span_tensions_N")
 
 
-def _at(sc, rtol):
-    return dataclasses.replace(sc, simulation=dataclasses.replace(sc.simulation, solver="dopri8", rtol=rtol,
-                                                                   atol=1e-3 * rtol))
-
-
-def _error(res, ref) -> float:
-    """Worst channel's max |x - x_ref| / ptp(x_ref) over the run's second half (the start's
-    transient left out: both runs start at the same state)."""
-    half = ref.t >= 0.5 * ref.t[-1]
-    errs = [float(np.max(np.abs(res.channels[k][half] - ref.channels[k][half]))
-                  / max(float(np.ptp(ref.channels[k][half])), 1e-300)) for k in ERROR_CHANNELS if k in ref.channels]
-    return max(errs)
-
-
 def accuracy(info) -> None:
     """Each variant at RTOLS against RTOL_REF: steps, wall per simulated s after compilation, error."""
     rows = []
     print(f"{'variant':<50} {'rtol':>7} {'steps':>7} {'wall / sim. s':>14} {'vs real time':>13} {'error':>9}")
     for name, text in variants().items():
         sc = loads_scene(text)
-        ref = transient.simulate(_at(sc, RTOL_REF), T_END)
+        ref = transient.simulate(_common.dopri8_at(sc, RTOL_REF), T_END)
         for rtol in RTOLS:
-            case = _at(sc, rtol)
+            case = _common.dopri8_at(sc, rtol)
             transient.simulate(case, T_END)  # compiles
             walls = []
             for _ in range(REPEATS):
@@ -89,7 +73,7 @@ def accuracy(info) -> None:
                 walls.append(time.perf_counter() - t0)
             wall = min(walls)
             row = dict(variant=name, rtol=rtol, steps=int(res.meta["steps"]), wall_per_simulated_s=wall / T_END,
-                       real_time_factor=T_END / wall, error=_error(res, ref), reference_steps=int(ref.meta["steps"]))
+                       real_time_factor=T_END / wall, error=_common.transient_error(res, ref, ERROR_CHANNELS), reference_steps=int(ref.meta["steps"]))
             rows.append(row)
             print(f"{name:<50} {rtol:>7.0e} {row['steps']:>7} {wall / T_END:>13.3f}s {T_END / wall:>12.1f}x "
                   f"{row['error']:>9.1e}", flush=True)

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import _common  # noqa: F401  (sets OPENBLAS_NUM_THREADS before numpy/jax)
 
-import dataclasses
 import json
 import math
 import re
@@ -75,15 +74,7 @@ def _scene(name, rtol, tau=None, w_r=None):
     if tau is not None:
         text = re.sub(r"^friction_speed = [0-9.e-]+", f"friction_speed = {w_r}\nfriction_stick_time = {tau}", text,
                       count=1, flags=re.M)
-    sc = loads_scene(text)
-    return dataclasses.replace(sc, simulation=dataclasses.replace(sc.simulation, solver="dopri8", rtol=rtol,
-                                                                   atol=1e-3 * rtol))
-
-
-def _error(res, ref) -> float:
-    half = ref.t >= 0.5 * ref.t[-1]
-    return max(float(np.max(np.abs(res.channels[k][half] - ref.channels[k][half]))
-                     / max(float(np.ptp(ref.channels[k][half])), 1e-300)) for k in ("arm_angle_deg", "span_tensions_N"))
+    return _common.dopri8_at(loads_scene(text), rtol)
 
 
 def main():
@@ -131,7 +122,7 @@ def main():
                 res = transient.simulate(sc, T_END)
                 walls.append(time.perf_counter() - t0)
             wall = min(walls)
-            err = None if tau is None else _error(res, ref)
+            err = None if tau is None else _common.transient_error(res, ref)
             cost.append(dict(pivot=name, tau=tau, omega_r=w_r, rtol=rtol, steps=int(res.meta["steps"]), wall_s=wall,
                              real_time_factor=T_END / wall, error=err))
             e = "-" if err is None else f"{err:.1e}"

@@ -244,12 +244,9 @@ class TensionerFriction(Effect):
         # anywhere inside its friction band, and the operating point is the frictionless one
         if scene.tensioner is None or t is None:
             return acc
-        from beltjax.drive.layouts import layout_of
-        from beltjax.drive.topology import n_rigid
+        from beltjax.drive.kinematics import angles_and_arm, arm_row
 
-        nr = n_rigid(scene)
-        arm = lambda x: layout_of(scene).arm_angle(x[:nr], inst)  # noqa: E731  (rad)
-        g = jax.grad(arm)(qi)  # the arm's row of the kinematic map: its moment's generalised force
+        g = arm_row(qi, scene, inst)  # a moment's generalised force on the arm
         omega = g @ qi_dot
 
         def with_friction(Q):
@@ -258,7 +255,7 @@ class TensionerFriction(Effect):
             out, d = jax.jvp(lambda m: acc(m * g if Q is None else Q + m * g), (jnp.zeros_like(omega),),
                              (jnp.ones_like(omega),))
             a0, c = (out[0], d[0]) if isinstance(out, tuple) else (out, d)
-            m = pivot.friction_moment(omega, arm(qi), g @ a0, g @ c, scene.tensioner)
+            m = pivot.friction_moment(omega, angles_and_arm(qi, scene, inst)[1], g @ a0, g @ c, scene.tensioner)
             return jax.tree_util.tree_map(lambda x, dx: x + m * dx, out, d)
 
         return with_friction

@@ -41,6 +41,12 @@ def angles_and_arm(qi, scene: Scene, inst: Installation, driven_angle=0.0):
     return phis, layout_of(scene).arm_angle(rigid, inst)
 
 
+def arm_row(qi, scene: Scene, inst: Installation):
+    """d theta / d q_i (n_i,; rad per rad): the tensioner arm angle's row of the kinematic map, the
+    generalised force of a unit moment on the arm (a unit vector on the arm's coordinate)."""
+    return jax.grad(lambda x: angles_and_arm(x, scene, inst)[1])(qi)
+
+
 def belt_travel(scene: Scene, t):
     """Nominal belt travel x_b(t) (m) along the route, set by the drive pulley's prescribed
     motion: speed |speed_rpm|, run-up at acceleration_rpm_per_s up to target_speed_rpm, and

@@ -271,8 +271,9 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
     settle_s = top.number("settle_s", required=False, default=1.0, nonnegative=True)
     from beltjax.orders.run import settle_problem
 
-    if settle_problem(settle_s):
-        raise SweepError(settle_problem(settle_s), "settle_s")
+    problem = settle_problem(settle_s)
+    if problem:
+        raise SweepError(problem, "settle_s")
     if "settle_s" in data and "response" not in outputs:
         raise SweepError("given but \"response\" is not in outputs", "settle_s")
     chunk = top.integer("chunk", required=False, minimum=1)
