@@ -179,6 +179,55 @@ FIELDS: dict[str, Field] = {
                        ">=0"),
 }
 
+#: the value a scene file's missing key takes: the one statement of every default (the scene
+#: reader fills a missing key from here, the writer leaves a key at its default out, the spec's
+#: pytrees take theirs from here, and the README's ranges table shows them).  A key not listed is
+#: required, or absent (None) when missing.
+DEFAULTS: dict[str, object] = {
+    "belt.CA": 0.0,
+    "belt.slip_speed": 100.0,
+    "pulley.speed_rpm": 0.0,
+    "pulley.acceleration_rpm_per_s": 0.0,
+    "pulley.fluctuation_amplitude_deg": 0.0,
+    "pulley.fluctuation_frequency_hz": 0.0,
+    "pulley.cm_offset": (0.0, 0.0),
+    "pulley.bearing_damping": 0.0,
+    "tensioner.arm_cm_distance": 0.0,
+    "tensioner.damping": 0.0,
+    "tensioner.friction_moment": 0.0,
+    "tensioner.friction_asymmetry": 1.0,
+    "tensioner.friction_speed": 0.01,
+    "tensioner.friction_stick_time": 3e-4,
+    "tensioner.stop_stiffness": 1e4,
+    "fluctuation.phase_deg": 0.0,
+    "decoupler.damping": 0.0,
+    "isolator.damping": 0.0,
+    "torque.mean_Nm": 0.0,
+    "torque.amplitude_Nm": 0.0,
+    "torque.frequency_hz": 0.0,
+    "torque.phase_deg": 0.0,
+    "torque.t_start_s": 0.0,
+    "span_load.phase_deg": 0.0,
+    "span_load.t_start_s": 0.0,
+    "route.back_side": (),
+    "route.direction": "cw",
+    "model.fidelity": "ancf",
+    "model.elements_per_span": 16,
+    "model.effects": (),
+    "model.bending": "linear",
+    "simulation.rho_inf": 0.9,
+    "simulation.rtol": 1e-6,
+    "simulation.atol": 1e-9,
+    "simulation.max_steps": 1_000_000,
+}
+
+
+def default(key: str):
+    """The default of the scene-file key ``key`` (``"tensioner.friction_speed"``; see
+    :data:`DEFAULTS`), or None when a missing key is required or absent."""
+    return DEFAULTS.get(key)
+
+
 _INDEXED = re.compile(r"^(pulley|torque|span_load|fluctuation|decoupler)\[\d+\]\.(.+)$")
 
 
@@ -239,10 +288,11 @@ def bad(f: Field, values) -> np.ndarray:
         return ~(np.isfinite(v) & (v >= f.low) & (v <= f.high) & ((v > 0) if f.sign == ">0" else True))
 
 
-def read_number(t, k: str, group: str, *, required=True, default=None):
+def read_number(t, k: str, group: str, *, required=True):
     """The number at key ``k`` of a :class:`beltjax.tomltable.Table` ``t`` (the table's own type
-    checks), in the range of the field ``group.k`` (else ``t.fail``, naming the key)."""
-    v = t.number(k, required=required, default=default)
+    checks), in the range of the field ``group.k`` (else ``t.fail``, naming the key); a missing
+    optional key takes its :data:`DEFAULTS` value (None if it has none)."""
+    v = t.number(k, required=required, default=DEFAULTS.get(f"{group}.{k}"))
     if t.has(k):
         msg = problem(FIELDS[f"{group}.{k}"], t.raw(k, True))
         if msg:
@@ -250,9 +300,11 @@ def read_number(t, k: str, group: str, *, required=True, default=None):
     return v
 
 
-def read_vector(t, k: str, group: str, *, required=True, default=None):
-    """The [x, y] at key ``k`` of table ``t``, each component in the range of ``group.k``."""
-    v = t.vector2(k, required=required, default=default)
+def read_vector(t, k: str, group: str, *, required=True):
+    """The [x, y] at key ``k`` of table ``t``, each component in the range of ``group.k``; a
+    missing optional key takes its :data:`DEFAULTS` value (None if it has none)."""
+    d = DEFAULTS.get(f"{group}.{k}")
+    v = t.vector2(k, required=required, default=None if d is None else list(d))
     if t.has(k):
         for x in t.raw(k, True):
             msg = problem(FIELDS[f"{group}.{k}"], x)
@@ -284,14 +336,23 @@ _SCENE_GROUPS = ("belt", "pulley", "tensioner", "fluctuation", "decoupler", "iso
                  "initial")
 
 
-def rows(groups=_SCENE_GROUPS) -> list[tuple[str, str, str, str]]:
-    """(key, unit, accepted range, why) of every scene-file field, for the documentation."""
+def rows(groups=_SCENE_GROUPS) -> list[tuple[str, str, str, str, str]]:
+    """(key, unit, accepted range, default, why) of every scene-file field, for the documentation
+    (default "-": the key is required, or absent when missing)."""
     out = []
     for key, f in FIELDS.items():
         if key.split(".")[0] in groups:
             rng = f"({_g(f.low)}, {_g(f.high)}]" if f.sign == ">0" and f.low == 0 else f"[{_g(f.low)}, {_g(f.high)}]"
-            out.append((key, f.unit or "-", rng, f.why))
+            out.append((key, f.unit or "-", rng, _default_text(DEFAULTS.get(key)), f.why))
     return out
+
+
+def _default_text(d) -> str:
+    if d is None:
+        return "-"
+    if isinstance(d, tuple):
+        return "[" + ", ".join(_g(x) for x in d) + "]"
+    return _g(d)
 
 
 def derived_rows() -> list[tuple[str, str, str]]:
@@ -315,10 +376,10 @@ def derived_rows() -> list[tuple[str, str, str]]:
 def scene_doc() -> str:
     """The accepted ranges as text for the scene-file documentation (``beltjax.scene``)."""
     rs = rows()
-    w = [max(len(r[i]) for r in rs) for i in range(3)]
+    w = [max(len(r[i]) for r in rs) for i in range(4)]
     lines = ["Accepted ranges (beltjax.schema; a value outside is an error naming the key, the",
-             "value, the range and its reason):", ""]
-    lines += [f"    {k:<{w[0]}}  {u:<{w[1]}}  {r:<{w[2]}}  {why}" for k, u, r, why in rs]
+             "value, the range and its reason), with the default a missing key takes (\"-\": none):", ""]
+    lines += [f"    {k:<{w[0]}}  {u:<{w[1]}}  {r:<{w[2]}}  {d:<{w[3]}}  {why}" for k, u, r, d, why in rs]
     lines += ["", "Derived limits on the whole drive (float64 cannot carry more):", ""]
     lines += [f"    {q}: {lim} ({why})" for q, lim, why in derived_rows()]
     return "\n".join(lines) + "\n"
@@ -326,8 +387,8 @@ def scene_doc() -> str:
 
 def markdown_table() -> str:
     """The accepted ranges as a Markdown table (for the README)."""
-    lines = ["| parameter | unit | accepted range | why |", "|---|---|---|---|"]
-    lines += [f"| `{k}` | {u} | {r} | {why} |" for k, u, r, why in rows()]
+    lines = ["| parameter | unit | accepted range | default | why |", "|---|---|---|---|---|"]
+    lines += [f"| `{k}` | {u} | {r} | {d} | {why} |" for k, u, r, d, why in rows()]
     lines += ["", "| derived limit | bound | why |", "|---|---|---|"]
     lines += [f"| {q} | {lim} | {why} |" for q, lim, why in derived_rows()]
     return "\n".join(lines) + "\n"

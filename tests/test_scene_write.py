@@ -152,3 +152,99 @@ def test_a_listed_effect_at_zero_is_written_back():
     for key in ("CA = 0.0", "damping = 0.0", "bearing_damping = 0.0", "cm_offset = [0.0, 0.0]"):
         assert key in written, key
     assert first_difference(scene, loads_scene(written)) is None
+
+
+_BARE = """
+[belt]
+EA = 1.0e5
+EI = 1.0e-3
+rhoA = 0.1
+static_tension = 300.0
+[[pulley]]
+name = "crank"
+center = [0.0, 0.0]
+radius = 0.08
+mass = 1.0
+inertia = 0.01
+driven = true
+[[pulley]]
+name = "alt"
+center = [0.3, 0.0]
+radius = 0.03
+mass = 0.5
+inertia = 0.001
+[tensioner]
+pivot = [0.15, 0.15]
+arm_length = 0.06
+pulley_radius = 0.03
+arm_mass = 0.3
+arm_inertia = 1.0e-4
+pulley_mass = 0.2
+pulley_inertia = 1.0e-4
+spring_stiffness = 20.0
+spring_preload_deg = 30.0
+[route]
+order = ["crank", "tensioner", "alt"]
+[[torque]]
+pulley = "alt"
+[[decoupler]]
+pulley = "alt"
+rotor_inertia = 3.0e-3
+stiffness = 20.0
+[isolator]
+pulley = "crank"
+stiffness = 300.0
+[[span_load]]
+span = "crank-tensioner"
+node = 1
+amplitude_N = 1.0
+frequency_hz = 10.0
+[simulation]
+"""
+
+
+def _defaulted(sc, key):
+    """The parsed scene's value of the scene-file key ``group.name`` (first of an array table)."""
+    group, name = key.split(".")
+    holder = {"belt": sc.belt, "pulley": sc.pulleys[0], "tensioner": sc.tensioner, "route": sc.route,
+              "model": sc.model, "simulation": sc.simulation, "isolator": sc.isolator,
+              "torque": sc.torques[0], "decoupler": sc.decouplers[0], "span_load": sc.span_loads[0]}.get(group)
+    return None if holder is None else getattr(holder, name)
+
+
+def test_defaults_are_stated_once_and_read_written_and_built_alike():
+    """Each default is stated once (beltjax.schema.DEFAULTS): a scene file missing every optional key
+    reads to exactly those values, the spec's pytrees default to them, and the writer leaves them out."""
+    from beltjax import schema
+    from beltjax.scene import spec
+
+    sc = loads_scene(_BARE)
+    checked = 0
+    for key, d in schema.DEFAULTS.items():
+        assert key in schema.FIELDS or key.split(".")[0] in ("route", "model", "simulation"), key
+        v = _defaulted(sc, key)
+        if v is None and key.startswith("fluctuation."):
+            continue  # (a harmonic needs its amplitude: checked with the fluctuation below)
+        got = np.asarray(v).tolist() if not isinstance(v, (str, tuple)) else v
+        assert got == (list(d) if isinstance(d, tuple) and not isinstance(v, tuple) else d), (key, v, d)
+        checked += 1
+    assert checked == len(schema.DEFAULTS) - 1
+    for cls, group in ((spec.Belt, "belt"), (spec.Tensioner, "tensioner"), (spec.Decoupler, "decoupler"),
+                       (spec.Isolator, "isolator"), (spec.Simulation, "simulation")):
+        for f in dataclasses.fields(cls):
+            key = f"{group}.{f.name}"
+            if f.default is not dataclasses.MISSING and f.default is not None and (key in schema.FIELDS
+                                                                                  or group == "simulation"):
+                assert key in schema.DEFAULTS and f.default == schema.DEFAULTS[key], key
+    doc = tomllib.loads(dumps_scene(sc))
+    for key in schema.DEFAULTS:
+        group, name = key.split(".")
+        table = doc.get(group, {})
+        for i, t in enumerate(table if isinstance(table, list) else [table]):
+            if group in ("route", "model") or (key == "pulley.speed_rpm" and i == 0):
+                continue  # (written whole: the file names its route, model and drive speed)
+            assert name not in t, key
+    flu = loads_scene(_BARE.replace("[simulation]", '[model]\neffects = ["speed_fluctuation"]\n'
+                                    '[[fluctuation]]\npulley = "crank"\norder = 2.0\namplitude_deg = 0.5\n'
+                                    '[simulation]'))
+    assert float(flu.fluctuations[0].phase_deg) == schema.DEFAULTS["fluctuation.phase_deg"]

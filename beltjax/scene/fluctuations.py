@@ -81,7 +81,7 @@ def parse(data, drive, base: str, table, num, source) -> tuple[Fluctuation, ...]
             t.fail("order" if per == "rev" else "frequency_hz", f"must be > 0, got {rate!r}")
         amp, speeds = _amplitude(t, num)
         out.append(Fluctuation(pulley=pulley, per=per, rate=_arr(rate), amplitude_deg=amp,
-                               phase_deg=_arr(num(t, "phase_deg", "fluctuation", required=False, default=0.0)),
+                               phase_deg=_arr(num(t, "phase_deg", "fluctuation", required=False)),
                                key=f"fluctuation[{i}]", rpm=speeds))
     return tuple(out)
 

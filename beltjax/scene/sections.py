@@ -33,6 +33,9 @@ _num = schema.read_number
 _vec = schema.read_vector
 
 
+_D = schema.default
+
+
 _TOP_KEYS = (
     "description", "belt", "pulley", "tensioner", "route", "model", "fluctuation", "decoupler", "isolator", "torque",
     "span_load", "initial", "simulation"
@@ -114,10 +117,10 @@ def _parse_belt(data, source) -> Belt:
         _fail("belt", "give exactly one of static_tension and length", source)
     T = _num(t, "static_tension", "belt", required=False)
     L = _num(t, "length", "belt", required=False)
-    CA = _num(t, "CA", "belt", required=False, default=0.0)
+    CA = _num(t, "CA", "belt", required=False)
     mu = _num(t, "friction_coefficient", "belt", required=False)
     groove = _num(t, "groove_angle_deg", "belt", required=False)
-    slip = _num(t, "slip_speed", "belt", required=False, default=100.0)
+    slip = _num(t, "slip_speed", "belt", required=False)
     return Belt(EA=_arr(EA), EI=_arr(EI), rhoA=_arr(rhoA), static_tension=_arr(T), length=_arr(L), CA=_arr(CA),
                 friction_coefficient=_arr(mu), groove_angle_deg=_arr(groove), slip_speed=_arr(slip))
 
@@ -138,14 +141,14 @@ def _parse_pulley(data, i, source) -> Pulley:
         for k in _DRIVEN_ONLY:
             if t.has(k):
                 t.fail(k, "only a driven pulley (driven = true) takes a prescribed motion")
-    speed = _num(t, "speed_rpm", "pulley", required=False, default=0.0)
-    accel = _num(t, "acceleration_rpm_per_s", "pulley", required=False, default=0.0)
-    amp = _num(t, "fluctuation_amplitude_deg", "pulley", required=False, default=0.0)
-    freq = _num(t, "fluctuation_frequency_hz", "pulley", required=False, default=0.0)
-    cm = _vec(t, "cm_offset", "pulley", required=False, default=[0.0, 0.0])
+    speed = _num(t, "speed_rpm", "pulley", required=False)
+    accel = _num(t, "acceleration_rpm_per_s", "pulley", required=False)
+    amp = _num(t, "fluctuation_amplitude_deg", "pulley", required=False)
+    freq = _num(t, "fluctuation_frequency_hz", "pulley", required=False)
+    cm = _vec(t, "cm_offset", "pulley", required=False)
     if math.hypot(*cm) >= radius:
         t.fail("cm_offset", f"offset {math.hypot(*cm)!r} m must be smaller than the radius {radius!r} m")
-    bd = _num(t, "bearing_damping", "pulley", required=False, default=0.0)
+    bd = _num(t, "bearing_damping", "pulley", required=False)
     mu = _num(t, "friction_coefficient", "pulley", required=False)
     target = _num(t, "target_speed_rpm", "pulley", required=False)
     if target is not None:
@@ -190,17 +193,16 @@ def _parse_tensioner(data, source) -> Tensioner:
         spring_stiffness=_arr(_num(t, "spring_stiffness", "tensioner")),
         spring_preload_deg=_arr(_num(t, "spring_preload_deg", "tensioner")),
         arm_angle_deg=_arr(_num(t, "arm_angle_deg", "tensioner", required=False)),
-        damping=_arr(_num(t, "damping", "tensioner", required=False, default=0.0)),
+        damping=_arr(_num(t, "damping", "tensioner", required=False)),
     )
-    cm = _num(t, "arm_cm_distance", "tensioner", required=False, default=0.0)
+    cm = _num(t, "arm_cm_distance", "tensioner", required=False)
     if cm > arm_length:
         t.fail("arm_cm_distance", f"must not exceed arm_length = {arm_length!r}, got {cm!r}")
     vals["arm_cm_distance"] = _arr(cm)
-    vals.update(friction_moment=_arr(_num(t, "friction_moment", "tensioner", required=False, default=0.0)),
-                friction_asymmetry=_arr(_num(t, "friction_asymmetry", "tensioner", required=False, default=1.0)),
-                friction_speed=_arr(_num(t, "friction_speed", "tensioner", required=False, default=0.01)),
-                friction_stick_time=_arr(_num(t, "friction_stick_time", "tensioner", required=False,
-                                              default=3e-4)))
+    vals.update(friction_moment=_arr(_num(t, "friction_moment", "tensioner", required=False)),
+                friction_asymmetry=_arr(_num(t, "friction_asymmetry", "tensioner", required=False)),
+                friction_speed=_arr(_num(t, "friction_speed", "tensioner", required=False)),
+                friction_stick_time=_arr(_num(t, "friction_stick_time", "tensioner", required=False)))
     lo = _num(t, "stop_min_deg", "tensioner", required=False)
     hi = _num(t, "stop_max_deg", "tensioner", required=False)
     if lo is not None and hi is not None and lo >= hi:
@@ -213,7 +215,7 @@ def _parse_tensioner(data, source) -> Tensioner:
     if t.has("stop_stiffness") and lo is None and hi is None:
         t.fail("stop_stiffness", "given but there is no stop (stop_min_deg, stop_max_deg): it would change nothing")
     vals.update(stop_min_deg=_arr(lo), stop_max_deg=_arr(hi),
-                stop_stiffness=_arr(_num(t, "stop_stiffness", "tensioner", required=False, default=1e4)))
+                stop_stiffness=_arr(_num(t, "stop_stiffness", "tensioner", required=False)))
     return Tensioner(**vals)
 
 
@@ -233,28 +235,28 @@ def _parse_route(data, names, has_tensioner, source) -> Route:
             t.fail("order", f"pulley {x!r} is not in the route")
     if has_tensioner and TENSIONER not in order:
         t.fail("order", f"a [tensioner] table is given but {TENSIONER!r} is not in the route")
-    back = t.strings("back_side", required=False, default=[])
+    back = t.strings("back_side", required=False, default=list(_D("route.back_side")))
     for x in back:
         if x not in order:
             t.fail("back_side", f"{x!r} is not in route.order")
-    direction = t.string("direction", required=False, default="cw", choices=DIRECTIONS)
+    direction = t.string("direction", required=False, default=_D("route.direction"), choices=DIRECTIONS)
     return Route(order=tuple(order), back_side=tuple(back), direction=direction)
 
 
 def _parse_model(data, source) -> Model:
     t = _table(data, "model", source, _MODEL_KEYS)
-    fidelity = t.string("fidelity", required=False, default="ancf", choices=FIDELITIES)
-    n = t.integer("elements_per_span", required=False, default=16, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN)
-    effects = t.strings("effects", required=False, default=[])
+    fidelity = t.string("fidelity", required=False, default=_D("model.fidelity"), choices=FIDELITIES)
+    n = t.integer("elements_per_span", required=False, default=_D("model.elements_per_span"), minimum=1, maximum=MAX_ELEMENTS_PER_SPAN)
+    effects = t.strings("effects", required=False, default=list(_D("model.effects")))
     for e in effects:
         if e not in EFFECTS:
             t.fail("effects", f"unknown effect {e!r} (known: {', '.join(EFFECTS)})")
-    bending = t.string("bending", required=False, default="linear", choices=BENDING_MODELS)
+    bending = t.string("bending", required=False, default=_D("model.bending"), choices=BENDING_MODELS)
     return Model(fidelity=fidelity, elements_per_span=n, effects=tuple(effects), bending=bending)
 
 
 def _window(t, group):
-    t0 = _num(t, "t_start_s", group, required=False, default=0.0)
+    t0 = _num(t, "t_start_s", group, required=False)
     t1 = _num(t, "t_end_s", group, required=False)
     if t1 is not None and t1 <= t0:
         t.fail("t_end_s", f"must be later than t_start_s = {t0!r}, got {t1!r}")
@@ -291,10 +293,10 @@ def _parse_torques(data, free_names, source) -> tuple[Torque, ...]:
         t0, t1 = _window(t, "torque")
         load = Torque(
             pulley=name,
-            mean_Nm=_arr(_num(t, "mean_Nm", "torque", required=False, default=0.0)),
-            amplitude_Nm=_arr(_num(t, "amplitude_Nm", "torque", required=False, default=0.0)),
-            frequency_hz=_arr(_num(t, "frequency_hz", "torque", required=False, default=0.0)),
-            phase_deg=_arr(_num(t, "phase_deg", "torque", required=False, default=0.0)),
+            mean_Nm=_arr(_num(t, "mean_Nm", "torque", required=False)),
+            amplitude_Nm=_arr(_num(t, "amplitude_Nm", "torque", required=False)),
+            frequency_hz=_arr(_num(t, "frequency_hz", "torque", required=False)),
+            phase_deg=_arr(_num(t, "phase_deg", "torque", required=False)),
             t_start_s=t0,
             t_end_s=t1,
         )
@@ -324,7 +326,7 @@ def _parse_decouplers(data, free_names, drive_name, source) -> tuple[Decoupler, 
         seen[name] = i
         out.append(Decoupler(pulley=name, rotor_inertia=_arr(_num(t, "rotor_inertia", "decoupler")),
                              stiffness=_arr(_num(t, "stiffness", "decoupler")),
-                             damping=_arr(_num(t, "damping", "decoupler", required=False, default=0.0))))
+                             damping=_arr(_num(t, "damping", "decoupler", required=False))))
     return tuple(out)
 
 
@@ -335,7 +337,7 @@ def _parse_isolator(data, drive, source) -> Isolator:
         t.fail("pulley", f"{name!r} is not the driven drive pulley (an isolator joins the driven crank's pulley to its "
                f"hub; here {drive.name!r}{'' if drive.driven else ', not driven'})")
     return Isolator(pulley=name, stiffness=_arr(_num(t, "stiffness", "isolator")),
-                    damping=_arr(_num(t, "damping", "isolator", required=False, default=0.0)))
+                    damping=_arr(_num(t, "damping", "isolator", required=False)))
 
 
 def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLoad, ...]:
@@ -359,7 +361,7 @@ def _parse_span_loads(data, spans, n_elements, fidelity, source) -> tuple[SpanLo
             node=node,
             amplitude_N=_arr(_num(t, "amplitude_N", "span_load")),
             frequency_hz=_arr(_num(t, "frequency_hz", "span_load")),
-            phase_deg=_arr(_num(t, "phase_deg", "span_load", required=False, default=0.0)),
+            phase_deg=_arr(_num(t, "phase_deg", "span_load", required=False)),
             t_start_s=t0,
             t_end_s=t1,
         )
@@ -396,9 +398,9 @@ def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
     t = _table(data, "simulation", source, _SIMULATION_KEYS)
     solver = t.string("solver", required=False, default=None, choices=SOLVERS)
     dt = _num(t, "dt_s", "simulation", required=False)
-    rho = _num(t, "rho_inf", "simulation", required=False, default=0.9)
-    rtol = _num(t, "rtol", "simulation", required=False, default=1e-6)
-    atol = _num(t, "atol", "simulation", required=False, default=1e-9)
+    rho = _num(t, "rho_inf", "simulation", required=False)
+    rtol = _num(t, "rtol", "simulation", required=False)
+    atol = _num(t, "atol", "simulation", required=False)
     out_dt = _num(t, "output_dt_s", "simulation", required=False)
     nodes = t.strings("nodes", required=False)
     if nodes is not None:
@@ -410,7 +412,7 @@ def _parse_simulation(data, spans, n_elements, fidelity, source) -> Simulation:
                 t.fail("nodes", f"{x!r} is not \"<span>:<node>\" with a span of {', '.join(spans)} "
                        f"and a node 0 to {n_elements}")
         nodes = tuple(nodes)
-    max_steps = t.integer("max_steps", required=False, default=1_000_000, minimum=1)
+    max_steps = t.integer("max_steps", required=False, default=_D("simulation.max_steps"), minimum=1)
     return Simulation(solver=solver, dt_s=dt, rho_inf=rho, rtol=rtol, atol=atol, output_dt_s=out_dt,
                       nodes=nodes, max_steps=max_steps)
 

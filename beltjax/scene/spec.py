@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import geometry
+from beltjax.schema import default as _default
 from beltjax.errors import BeltjaxError
 
 
@@ -75,7 +76,7 @@ class Belt(eqx.Module):
     CA: jax.Array
     friction_coefficient: jax.Array | None = None
     groove_angle_deg: jax.Array | None = None
-    slip_speed: jax.Array = 100.0
+    slip_speed: jax.Array = _default("belt.slip_speed")
 
 
 class Pulley(eqx.Module):
@@ -129,13 +130,13 @@ class Tensioner(eqx.Module):
     arm_angle_deg: jax.Array | None
     arm_cm_distance: jax.Array
     damping: jax.Array
-    friction_moment: jax.Array = 0.0
-    friction_asymmetry: jax.Array = 1.0
-    friction_speed: jax.Array = 0.01
-    friction_stick_time: jax.Array = 3e-4
+    friction_moment: jax.Array = _default("tensioner.friction_moment")
+    friction_asymmetry: jax.Array = _default("tensioner.friction_asymmetry")
+    friction_speed: jax.Array = _default("tensioner.friction_speed")
+    friction_stick_time: jax.Array = _default("tensioner.friction_stick_time")
     stop_min_deg: jax.Array | None = None
     stop_max_deg: jax.Array | None = None
-    stop_stiffness: jax.Array = 1e4
+    stop_stiffness: jax.Array = _default("tensioner.stop_stiffness")
 
     def idler_center(self, theta):
         """Idler centre (m), shape (2,), at arm angle theta (rad, CCW from +x)."""
@@ -235,7 +236,7 @@ class Decoupler(eqx.Module):
     pulley: str = eqx.field(static=True)
     rotor_inertia: jax.Array
     stiffness: jax.Array
-    damping: jax.Array = 0.0  # N m s/rad, across the spring while the clutch is engaged
+    damping: jax.Array = _default("decoupler.damping")  # N m s/rad, across the spring while the clutch is engaged
 
 
 class Isolator(eqx.Module):
@@ -246,7 +247,7 @@ class Isolator(eqx.Module):
 
     pulley: str = eqx.field(static=True)
     stiffness: jax.Array
-    damping: jax.Array = 0.0
+    damping: jax.Array = _default("isolator.damping")
 
 
 class SpanLoad(eqx.Module):
@@ -281,12 +282,12 @@ class Simulation(eqx.Module):
 
     solver: str | None = eqx.field(static=True, default=None)
     dt_s: float | None = eqx.field(static=True, default=None)
-    rho_inf: float = eqx.field(static=True, default=0.9)
-    rtol: float = eqx.field(static=True, default=1e-6)
-    atol: float = eqx.field(static=True, default=1e-9)
+    rho_inf: float = eqx.field(static=True, default=_default("simulation.rho_inf"))
+    rtol: float = eqx.field(static=True, default=_default("simulation.rtol"))
+    atol: float = eqx.field(static=True, default=_default("simulation.atol"))
     output_dt_s: float | None = eqx.field(static=True, default=None)
     nodes: tuple[str, ...] | None = eqx.field(static=True, default=None)
-    max_steps: int = eqx.field(static=True, default=1_000_000)
+    max_steps: int = eqx.field(static=True, default=_default("simulation.max_steps"))
 
 
 class Scene(eqx.Module):

@@ -2,7 +2,7 @@
 last bit): the optimiser's and a script's way to save a changed drive.
 
 Keys are written where the reader needs them and where a value differs from what the reader
-takes for a missing key (the spec's default, else 0 or none), so the file stays as short as a
+takes for a missing key (:data:`beltjax.schema.DEFAULTS`), so the file stays as short as a
 hand-written one.  A measured crank-speed trace is written as the harmonics it was read into.
 :func:`dumps_scene` reads its own text back and raises :class:`SceneError` naming the first key
 that does not come back (a scene built in code with values no scene file may hold, say), so a
@@ -17,7 +17,7 @@ import os
 import jax
 import numpy as np
 
-from beltjax import tomlwrite
+from beltjax import schema, tomlwrite
 from beltjax.scene.spec import Scene, SceneError, drive_pulley_index
 
 
@@ -25,24 +25,26 @@ def _f(x) -> float:
     return float(np.asarray(x))
 
 
-def _put(table: dict, key: str, x, default=0.0) -> None:
-    """``table[key]`` = x (a float, or a list for a vector) unless x is None or its default."""
+def _put(table: dict, key: str, x, group: str | None = None) -> None:
+    """``table[key]`` = x (a float, or a list for a vector) unless x is None or the default of
+    the scene-file key ``group.key`` (:data:`beltjax.schema.DEFAULTS`; no group: always written)."""
     if x is None:
         return
     a = np.asarray(x, dtype=float)
-    if default is not None and np.array_equal(a, np.broadcast_to(np.asarray(default, dtype=float), a.shape)):
+    d = None if group is None else schema.default(f"{group}.{key}")
+    if d is not None and np.array_equal(a, np.broadcast_to(np.asarray(d, dtype=float), a.shape)):
         return
     table[key] = [float(v) for v in a] if a.ndim else float(a)
 
 
 def _belt(b) -> dict:
     t = {"EA": _f(b.EA), "EI": _f(b.EI), "rhoA": _f(b.rhoA)}
-    _put(t, "static_tension", b.static_tension, None)
-    _put(t, "length", b.length, None)
-    _put(t, "CA", b.CA)
-    _put(t, "friction_coefficient", b.friction_coefficient, None)
-    _put(t, "groove_angle_deg", b.groove_angle_deg, None)
-    _put(t, "slip_speed", b.slip_speed, 100.0)
+    _put(t, "static_tension", b.static_tension)
+    _put(t, "length", b.length)
+    _put(t, "CA", b.CA, "belt")
+    _put(t, "friction_coefficient", b.friction_coefficient)
+    _put(t, "groove_angle_deg", b.groove_angle_deg)
+    _put(t, "slip_speed", b.slip_speed, "belt")
     return t
 
 
@@ -54,12 +56,12 @@ def _pulley(p, is_drive: bool) -> dict:
     if is_drive:
         t["speed_rpm"] = _f(p.speed_rpm)
     else:
-        _put(t, "speed_rpm", p.speed_rpm)  # (no scene file may give it: the read-back says so)
+        _put(t, "speed_rpm", p.speed_rpm, "pulley")  # (no scene file may give it: the read-back says so)
     for k in ("acceleration_rpm_per_s", "fluctuation_amplitude_deg", "fluctuation_frequency_hz", "cm_offset",
               "bearing_damping"):
-        _put(t, k, getattr(p, k))
-    _put(t, "target_speed_rpm", p.target_speed_rpm, None)
-    _put(t, "friction_coefficient", p.friction_coefficient, None)
+        _put(t, k, getattr(p, k), "pulley")
+    _put(t, "target_speed_rpm", p.target_speed_rpm)
+    _put(t, "friction_coefficient", p.friction_coefficient)
     return t
 
 
@@ -68,27 +70,22 @@ def _tensioner(x) -> dict:
     for k in ("arm_length", "pulley_radius", "arm_mass", "arm_inertia", "pulley_mass", "pulley_inertia",
               "spring_stiffness", "spring_preload_deg"):
         t[k] = _f(getattr(x, k))
-    _put(t, "arm_angle_deg", x.arm_angle_deg, None)
-    for k in ("arm_cm_distance", "damping", "friction_moment"):
-        _put(t, k, getattr(x, k))
-    _put(t, "friction_asymmetry", x.friction_asymmetry, 1.0)
-    _put(t, "friction_speed", x.friction_speed, 0.01)
-    _put(t, "friction_stick_time", x.friction_stick_time, 3e-4)
-    _put(t, "stop_min_deg", x.stop_min_deg, None)
-    _put(t, "stop_max_deg", x.stop_max_deg, None)
-    _put(t, "stop_stiffness", x.stop_stiffness, 1e4)
+    _put(t, "arm_angle_deg", x.arm_angle_deg)
+    for k in ("arm_cm_distance", "damping", "friction_moment", "friction_asymmetry", "friction_speed",
+              "friction_stick_time", "stop_min_deg", "stop_max_deg", "stop_stiffness"):
+        _put(t, k, getattr(x, k), "tensioner")
     return t
 
 
-def _loads(items, first: str, required: tuple[str, ...], optional: tuple[str, ...]) -> list[dict]:
+def _loads(items, group: str, first: str, required: tuple[str, ...], optional: tuple[str, ...]) -> list[dict]:
     out = []
     for x in items:
         t = {first: getattr(x, first)}
         for k in required:
             t[k] = _f(getattr(x, k))
         for k in optional:
-            _put(t, k, getattr(x, k))
-        _put(t, "t_end_s", getattr(x, "t_end_s", None), None)
+            _put(t, k, getattr(x, k), group)
+        _put(t, "t_end_s", getattr(x, "t_end_s", None))
         out.append(t)
     return out
 
@@ -100,7 +97,7 @@ def _fluctuation(f) -> dict:
         t["amplitude_deg"] = [float(v) for v in np.asarray(f.amplitude_deg)]
     else:
         t["amplitude_deg"] = _f(f.amplitude_deg)
-    _put(t, "phase_deg", f.phase_deg)
+    _put(t, "phase_deg", f.phase_deg, "fluctuation")
     return t
 
 
@@ -127,20 +124,20 @@ def scene_document(scene: Scene) -> dict:
     doc["route"] = {"order": list(r.order), "back_side": list(r.back_side), "direction": r.direction}
     m = scene.model
     doc["model"] = {"fidelity": m.fidelity, "elements_per_span": m.elements_per_span, "effects": list(m.effects)}
-    if m.bending != "linear":
+    if m.bending != schema.default("model.bending"):
         doc["model"]["bending"] = m.bending
     if scene.torques:
-        doc["torque"] = _loads(scene.torques, "pulley", (), ("mean_Nm", "amplitude_Nm", "frequency_hz", "phase_deg",
+        doc["torque"] = _loads(scene.torques, "torque", "pulley", (), ("mean_Nm", "amplitude_Nm", "frequency_hz", "phase_deg",
                                                               "t_start_s"))
     if scene.fluctuations:
         doc["fluctuation"] = [_fluctuation(f) for f in scene.fluctuations]
     if scene.decouplers:
-        doc["decoupler"] = _loads(scene.decouplers, "pulley", ("rotor_inertia", "stiffness"), ("damping",))
+        doc["decoupler"] = _loads(scene.decouplers, "decoupler", "pulley", ("rotor_inertia", "stiffness"), ("damping",))
     if scene.isolator is not None:
-        doc["isolator"] = _loads([scene.isolator], "pulley", ("stiffness",), ("damping",))[0]
+        doc["isolator"] = _loads([scene.isolator], "isolator", "pulley", ("stiffness",), ("damping",))[0]
     if scene.span_loads:
         doc["span_load"] = [{"span": x.span, "node": x.node, **t} for x, t in zip(
-            scene.span_loads, _loads(scene.span_loads, "span", ("amplitude_N", "frequency_hz"),
+            scene.span_loads, _loads(scene.span_loads, "span_load", "span", ("amplitude_N", "frequency_hz"),
                                      ("phase_deg", "t_start_s")))]
     initial = {}
     if scene.initial.rotation_deg:
@@ -164,9 +161,9 @@ def _keep_listed(doc: dict, scene: Scene) -> None:
     for name, table, key in listed_without_key(scene, doc):
         if table == "pulley":
             i = drive_pulley_index(scene.pulleys) if name == "speed_fluctuation" else 0
-            _put(doc["pulley"][i], key, getattr(scene.pulleys[i], key), None)
+            _put(doc["pulley"][i], key, getattr(scene.pulleys[i], key))
         elif table in doc:
-            _put(doc[table], key, getattr(scene.belt if table == "belt" else scene.tensioner, key), None)
+            _put(doc[table], key, getattr(scene.belt if table == "belt" else scene.tensioner, key))
 
 
 def _comparable(scene: Scene) -> Scene:
