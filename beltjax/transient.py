@@ -458,7 +458,7 @@ def _result(scene: Scene, inst, t, ys, forcing, fixed: bool, run: dict) -> Simul
     their checks and the meta (``run``: the run's dt_s, output_dt_s, steps, wall and compile times)."""
     dt, out_dt = run["dt_s"], run["output_dt_s"]
     chans = {k: np.asarray(v) for k, v in _outputs(jnp.asarray(t), jnp.asarray(ys), scene, inst).items()}
-    pulley_forces = chans.pop("_pulley_forces_N")
+    pulley_forces, wraps = chans.pop("_pulley_forces_N"), chans.pop("_wraps_rad")
     cols = _columns(scene)
     if not cols["drive_torques_Nm"]:
         chans.pop("drive_torques_Nm")
@@ -470,7 +470,7 @@ def _result(scene: Scene, inst, t, ys, forcing, fixed: bool, run: dict) -> Simul
         if not np.all(np.isfinite(v)):
             raise TransientError(f"output {k} is not finite: the run diverged")
     slides = chans.pop("_end_slides_m", None)
-    slipping = friction_channels(scene, inst, pulley_forces, t, chans, cols)
+    slipping = friction_channels(scene, wraps, pulley_forces, t, chans, cols)
     meta = dict(
         fidelity=scene.model.fidelity,
         elements_per_span=drive.spans_of(scene).independent // 4,

@@ -74,6 +74,7 @@ def _outputs_one(t, y, scene: Scene, inst, M_full):
         span_tensions_N=tensions,
         span_forces_N=forces,
         _pulley_forces_N=pulley,  # for the critical-speed check; not an output channel
+        _wraps_rad=drive.wraps(qi, scene, inst),  # the present wraps, for the friction's margins; not a channel
         hub_forces_N=bearings,
         hub_force_magnitudes_N=jnp.linalg.norm(bearings, axis=1),
         pulley_speeds_rpm=Bd[:n, 2] * 60.0 / (2 * jnp.pi),
@@ -172,12 +173,14 @@ UNITS = dict(
 )
 
 
-def friction_channels(scene: Scene, inst, pulley_forces, t, chans: dict, cols: dict) -> list[dict]:
-    """Add the friction each arc needs (capstan law, :mod:`beltjax.friction`) and, where the scene
-    gives a friction coefficient, the slip margins to the channels; the pulleys whose margin
-    fell to zero or below (:func:`beltjax.span_flags.slipping_pulleys`).  A span that carries
-    nothing (slack or past the critical speed: flagged on its own) counts as 1e-9 N."""
-    need, margins = friction.arc_margins(scene, pulley_forces, np.asarray(inst.wrap), np)
+def friction_channels(scene: Scene, wraps, pulley_forces, t, chans: dict, cols: dict) -> list[dict]:
+    """Add the friction each arc needs (capstan law, :mod:`beltjax.friction`) over its present
+    wrap (``wraps``, rad, (samples, n): an arm's swing turns the wraps of its idler and its
+    neighbours) and, where the scene gives a friction coefficient, the slip margins to the
+    channels; the pulleys whose margin fell to zero or below
+    (:func:`beltjax.span_flags.slipping_pulleys`).  A span that carries nothing (slack or past
+    the critical speed: flagged on its own) counts as 1e-9 N."""
+    need, margins = friction.arc_margins(scene, pulley_forces, np.asarray(wraps), np)
     order = list(scene.route.order)
     chans["friction_needed"], cols["friction_needed"] = need, order
     given = friction.given(scene)

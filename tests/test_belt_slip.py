@@ -228,3 +228,45 @@ def test_gradient_through_sliding_matches_finite_differences():
         fd = (float(f(p0 + e)) - float(f(p0 - e))) / (2 * h)
         assert g[k] == pytest.approx(fd, rel=1e-4), (k, g[k], fd)
         assert abs(fd) > 1e-3
+
+
+def test_the_capacity_and_the_margins_take_the_present_wrap():
+    """An arc's capstan capacity is that of its present wrap (an arm's swing turns it): a force
+    difference between the capacities of the installed and of a 10 % larger wrap holds on the
+    larger one and slides on the installed one; the transient's friction demand divides by the
+    wrap of each sample's layout (drive.wraps), checked on the eight-pulley tensioner drive with
+    its arm turned by 1 deg (the demand then differs from the installed wraps' by over 1 %)."""
+    from beltjax import friction
+    from beltjax.transient_outputs import _outputs
+
+    sc = loads_scene(_bench())
+    inst = statics.install(drive.canonical(sc))
+    mu = friction.effective_coefficients(sc)
+    f_slack = 300.0
+    gain0, gain1 = (float(jnp.expm1(mu[1] * w)) for w in (inst.wrap[1], 1.1 * inst.wrap[1]))
+    f_tight = f_slack * (1 + 0.5 * (gain0 + gain1))  # between the two capacities
+    forces = jnp.array([f_slack, f_tight])  # span 0 leaves the crank into the alternator (its entry)
+    lam = forces / float(sc.belt.EA) + 1.0
+    rims = jnp.array([5.0, 5.0])
+    z = jnp.zeros(6)
+    g_installed = belt_slip.rates(forces, lam, rims, sc, inst, inst.wrap, z)[:2]
+    g_wider = belt_slip.rates(forces, lam, rims, sc, inst, inst.wrap.at[1].multiply(1.1), z)[:2]
+    assert abs(float(g_installed[1])) > 1.0 and float(g_wider[1]) == 0.0
+
+    fead = loads_scene(scene_text("fead_8pulley_friction.toml"))
+    fi = statics.install(drive.canonical(fead))
+    qi = drive.installed_coordinates(fead, fi)
+    qi = qi - math.radians(1.0) * drive.arm_row(qi, fead, fi)  # the arm turned by 1 deg, into the belt
+    y = jnp.concatenate([qi, jnp.zeros_like(qi)])[None, :]
+    ch = _outputs(jnp.zeros(1), y, fead, fi)
+    wraps = np.asarray(ch["_wraps_rad"][0])
+    np.testing.assert_allclose(wraps, np.asarray(drive.wraps(qi, fead, fi)), rtol=1e-14)
+    assert np.max(np.abs(wraps - np.asarray(fi.wrap))) > math.radians(0.5)  # the swing turned some wraps
+    assert np.all(np.asarray(ch["_pulley_forces_N"][0]) > 0)
+    need = friction.demand(np.asarray(ch["_pulley_forces_N"][0]), wraps, np)
+    before = friction.demand(np.asarray(ch["_pulley_forces_N"][0]), np.asarray(fi.wrap), np)
+    loaded = before > 1e-6  # the arcs the swing loads (the rest carry equal forces: no demand)
+    assert loaded.sum() >= 2 and np.max(np.abs(need[loaded] / before[loaded] - 1)) > 0.01
+    chans, cols = {}, {}
+    transient.friction_channels(fead, ch["_wraps_rad"], np.asarray(ch["_pulley_forces_N"]), np.zeros(1), chans, cols)
+    np.testing.assert_allclose(chans["friction_needed"][0], need, rtol=1e-12)

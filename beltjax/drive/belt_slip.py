@@ -27,10 +27,11 @@ pulleys' torques, follow the slip; nothing else changes.  Their rates:
 - **gross slip** (the capstan law, regularised): the arc transmits a force difference
   ``dF = F_in - F_out`` (the spans' forces on the pulleys, T - rhoA c^2 lam) up to its
   capacity ``C = F_min (exp(mu' theta) - 1)`` (Euler-Eytelwein: mu' the effective coefficient
-  of :func:`beltjax.friction.effective_coefficients`, theta the installed wrap), beyond which
+  of :func:`beltjax.friction.effective_coefficients`, theta the present wrap), beyond which
   the belt slides over the whole arc: ``g_i' = -sign(dF) v_r r((|dF| - C) / C_0)``, r the ramp
-  max(x, 0) rounded (C1) over 0.1 %, ``C_0 = T_0 (exp(mu' theta) - 1)`` the arc's capacity at
-  the installation tension T_0.  The sliding arc transmits ``C + C_0 |g'| / v_r``: v_r
+  max(x, 0) rounded (C1) over 0.1 %, ``C_0 = T_0 (exp(mu' theta_0) - 1)`` the arc's capacity at
+  the installation tension T_0 and the installed wrap theta_0.  The sliding arc transmits
+  ``C + C_0 |g'| / v_r``: v_r
   (``belt.slip_speed``, m/s, default 100) is the regularisation, a linear rise of the friction
   force with the sliding speed that makes the law smooth and the slip state an ODE rather than a
   complementarity problem; the scale C_0 is fixed, so a span that goes slack (C -> 0) leaves the
@@ -46,8 +47,7 @@ pulleys' torques, follow the slip; nothing else changes.  Their rates:
   operating point (which solves D = inst.creep), and a drive at rest keeps its arcs.
 
 Limits: rotational model only (the hybrid model's arcs are Eulerian contacts without their
-own belt material); the capacity's wrap is the installed one (an arm swing changes it a
-little); the arc's belt is replaced with a first-order lag, not the exact transport delay; the
+own belt material); the arc's belt is replaced with a first-order lag, not the exact transport delay; the
 friction law sees the spans' elastic forces (belt damping acts on their whole stretching rate,
 the slip's included); the wrapped belt's inertia stays with its pulley (about 1 % of a small
 pulley's) while it slides.  Units: SI.
@@ -140,9 +140,10 @@ def rates(forces, stretches, rim_speeds, scene: Scene, inst, wraps, z):
     mu = friction.effective_coefficients(scene)
     f_in = jnp.roll(forces, 1)
     d_f = f_in - forces
-    gain = jnp.expm1(mu * wrap)  # exp(mu' theta) - 1
+    gain = jnp.expm1(mu * wraps)  # exp(mu' theta) - 1 over the present wrap (an arm's swing turns it)
     capacity = jnp.maximum(jnp.minimum(forces, f_in), 0.0) * gain  # C: the smaller span force (floored at 0)
-    slide = scene.belt.slip_speed * ramp((jnp.abs(d_f) - capacity) / (tension * gain))  # C_0 = T_0 gain
+    scale = tension * jnp.expm1(mu * wrap)  # C_0 = T_0 (exp(mu' theta_0) - 1): installed, a fixed scale
+    slide = scene.belt.slip_speed * ramp((jnp.abs(d_f) - capacity) / scale)
     g_dot = 0.0 - jnp.sign(d_f) * slide  # (no -0.0 where it holds)
     lam_in = jnp.roll(stretches, 1)
     u_dot = jnp.maximum(rim_speeds + g_dot, 0.0) * (stretches / lam_in - 1.0)

@@ -232,7 +232,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
             continue
         for stat, val in _reduce(chans[name], settings).items():
             out[f"{name}:{stat}"] = val
-    need, margins = friction.arc_margins(sc, chans["_pulley_forces_N"], inst.wrap)
+    need, margins = friction.arc_margins(sc, chans["_pulley_forces_N"], chans["_wraps_rad"])
     out["max_friction_needed"] = jnp.max(need, axis=0)
     if margins.shape[-1]:
         out["min_slip_margin"] = jnp.min(margins, axis=0)
