@@ -333,7 +333,7 @@ def equilibrium(scene: Scene, inst: Installation | None = None, speed=None, step
     full0 = drive.installed_coordinates(scene, inst)
     dofs = drive.static_dofs(scene)
     k = len(dofs)
-    running = belt_slip.n_states(scene) > 0  # a belt that creeps (else it grips: arcs kept)
+    running = belt_slip.running(scene)  # a belt that creeps (else it grips: arcs kept)
     z0 = jnp.concatenate([full0[dofs], inst.creep]) if running else full0[dofs]
 
     def unpack(z):

@@ -46,7 +46,6 @@ import numpy as np
 
 from beltjax import drive, excitation, runtime, signals, statics
 from beltjax.drive import belt_slip, couplings
-from beltjax.drive.belt_slip import split_state
 from beltjax.span_flags import check_initial_strain, displaced_span_ends, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
@@ -149,9 +148,8 @@ def initial_state(scene: Scene):
 
 
 def vector_field(scene: Scene, inst, rm=None):
-    """f(t, y, args) of y = (q_i, q_i', slip states) for diffrax.ODETerm (m, rad, m/s, rad/s per
-    s; the slip states only with ``belt_slip``: :func:`split_state`); ``rm``: the scene's
-    :func:`beltjax.drive.reduced_mass` where the caller has it."""
+    """f(t, y, args) of y = (q_i, q_i', slip states: :func:`beltjax.drive.belt_slip.split_state`) for
+    diffrax.ODETerm (m, rad, m/s, rad/s per s); ``rm``: :func:`beltjax.drive.reduced_mass`, if had."""
     rm = drive.reduced_mass(scene, inst) if rm is None else rm  # the constant span block of M_ii, factored once
 
     def f(t, y, args):
@@ -168,7 +166,7 @@ def _rate(t, y, scene: Scene, inst, rm):
     equations once per compilation and reuse the traced program (XLA inlines it): measured, the
     chunk function's tracing fell from 8.3 to 0.9 s on the hybrid tensioner bench
     (4.6 to 0.8 s on its rotational model), the run unchanged."""
-    qi, qd, z = split_state(y, drive.n_independent(scene))
+    qi, qd, z = belt_slip.split_state(y, drive.n_independent(scene))
     if z.size == 0:
         return jnp.concatenate([qd, drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t)])
     return jnp.concatenate([qd, *drive.reduced_accelerations(qi, qd, scene, inst, rm, t=t, slip=z)])
@@ -343,6 +341,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     """
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise TransientError(f"t_end: must be a finite time > 0 s, got {t_end!r}")
+    if refused := belt_slip.transient_check(scene):
+        raise TransientError(f"{refused[0]}: {refused[1]}", refused[0])
     scene = drive.canonical(scene)
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, solver=default_solver(scene)))
     dt = default_dt(scene) if dt is None else float(dt)

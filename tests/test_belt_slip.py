@@ -187,10 +187,10 @@ def test_nothing_slides_without_the_effect_and_its_refusals():
     res = transient.simulate(loads_scene(_bench(effects="[]")), 0.02)
     assert "slip_speeds_m_s" not in res.channels and res.y.shape[1] == 2 * drive.n_independent(
         loads_scene(_bench(effects="[]")))
-    hybrid = _bench().replace('fidelity = "rotational"', 'fidelity = "ancf"')
-    with pytest.raises(SceneError, match="belt_slip is built for the rotational model") as e:
-        loads_scene(hybrid)
-    assert e.value.key == "model.effects"
+    hybrid = loads_scene(_bench().replace('fidelity = "rotational"', 'fidelity = "ancf"'))  # its statics: below
+    with pytest.raises(transient.TransientError, match="built for the rotational model's transient") as e:
+        transient.simulate(hybrid, 0.01)
+    assert e.value.key == "model.effects" and str(e.value).startswith("model.effects: ")
     with pytest.raises(SceneError, match="needs a friction coefficient on every wrapped arc") as e:
         loads_scene(_bench().replace(f"friction_coefficient = {MU}\n", ""))
     assert e.value.key == "belt.friction_coefficient"
@@ -270,3 +270,20 @@ def test_the_capacity_and_the_margins_take_the_present_wrap():
     chans, cols = {}, {}
     transient.friction_channels(fead, ch["_wraps_rad"], np.asarray(ch["_pulley_forces_N"]), np.zeros(1), chans, cols)
     np.testing.assert_allclose(chans["friction_needed"][0], need, rtol=1e-12)
+
+
+def test_both_fidelities_give_one_running_operating_point():
+    """With belt_slip the hybrid model's statics holds the running belt's compatibility as the
+    rotational model's does: the two agree on the spans' tensions and on the belt each arc hands
+    its exit span, and the running belt's tensions differ from the gripping belt's."""
+    rot = loads_scene(_bench())
+    hyb = loads_scene(_bench().replace('fidelity = "rotational"', 'fidelity = "ancf"'))
+    grip = loads_scene(_bench(effects="[]").replace('fidelity = "rotational"', 'fidelity = "ancf"'))
+    (_, ir, cr), (_, ih, ch), (_, ig, _) = (statics.equilibrium(s, loaded=True) for s in (rot, hyb, grip))
+    assert float(cr[0]) == 1.0 and float(ch[0]) == 1.0
+    np.testing.assert_allclose(np.asarray(ih.creep), np.asarray(ir.creep), rtol=1e-8)
+    assert np.max(np.abs(np.asarray(ih.creep))) > 1e-5 and np.all(np.asarray(ig.creep) == 0.0)
+    a, b, g = (statics.analyse_statics(s) for s in (rot, hyb, grip))
+    np.testing.assert_allclose(b.span_tensions_N, a.span_tensions_N, rtol=1e-9)
+    assert np.max(np.abs(np.asarray(b.span_tensions_N) - np.asarray(g.span_tensions_N))) > 0.1
+    assert b.drive_torque_Nm == pytest.approx(a.drive_torque_Nm, rel=1e-9)

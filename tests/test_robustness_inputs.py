@@ -255,10 +255,13 @@ CASES = [
          lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[fluctuation]]\npulley = "crank"\norder = 6.0\n'
                                                        'rpm = [800.0, 2000.0]\namplitude_deg = [0.5, 0.2, 0.1]\n')],
          "fluctuation[2].amplitude_deg", "one per speed"),
-    case("scene-belt-slip-hybrid", "`statics`: `belt_slip` in the hybrid tensioner bench",
-         "creep and gross slip asked of the hybrid model",
-         lambda d: ["statics", bench(d, ('effects = ["transport"]', 'effects = ["transport", "belt_slip"]'))],
-         "model.effects", "rotational model"),
+    case("scene-belt-slip-hybrid", "`simulate`: `belt_slip` in a hybrid transient (two-pulley bench)",
+         "creep and gross slip dynamics asked of the hybrid model's transient (its statics takes the running belt)",
+         lambda d: ["simulate", write(d, "scene.toml", edit(T200, ("static_tension = 200.0 ", "friction_coefficient = 0.3\n"
+                                                                   "static_tension = 200.0 "),
+                                                           ('effects = ["transport"]', 'effects = ["transport", "belt_slip"]'))),
+                    "--t-end", "0.01"],
+         "model.effects", "rotational model's transient"),
     case("scene-belt-slip-no-friction", "`statics`: `belt_slip` with a pulley without a friction coefficient",
          "slip asked of arcs with no friction coefficient (8-pulley drive: the belt's removed, the A/C given its own)",
          lambda d: ["statics", write(d, "scene.toml", edit(FEAD, ("friction_coefficient = 0.35 ", "# "),

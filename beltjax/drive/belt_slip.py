@@ -46,8 +46,10 @@ pulleys' torques, follow the slip; nothing else changes.  Their rates:
   inst.creep_i - d_i)`` (theta_i the present wrap).  A steady drive so ends in the statics'
   operating point (which solves D = inst.creep), and a drive at rest keeps its arcs.
 
-Limits: rotational model only (the hybrid model's arcs are Eulerian contacts without their
-own belt material); the arc's belt is replaced with a first-order lag, not the exact transport delay; the
+Limits: the slip states are the rotational model's (the hybrid model's arcs are Eulerian
+contacts without their own belt material): a hybrid scene with ``belt_slip`` takes the running
+belt's operating point (statics, modes, Campbell diagrams, sweeps) and its transient is refused
+(:func:`transient_check`); the arc's belt is replaced with a first-order lag, not the exact transport delay; the
 friction law sees the spans' elastic forces (belt damping acts on their whole stretching rate,
 the slip's included); the wrapped belt's inertia stays with its pulley (about 1 % of a small
 pulley's) while it slides.  Units: SI.
@@ -66,9 +68,16 @@ from beltjax.scene import Scene
 ROUNDING = 1e-3
 
 
+def running(scene: Scene) -> bool:
+    """Whether ``scene``'s belt creeps (``belt_slip`` listed, either fidelity): its operating point
+    holds the running belt's compatibility (:func:`beltjax.statics.equilibrium`)."""
+    return "belt_slip" in effects_of(scene)
+
+
 def n_states(scene: Scene) -> int:
-    """Slip states of ``scene``: 3 per route entry with ``belt_slip`` listed, else 0."""
-    return 3 * len(scene.route.order) if "belt_slip" in effects_of(scene) else 0
+    """Slip states of ``scene``'s transient: 3 per route entry with ``belt_slip`` listed, else 0
+    (a hybrid transient with it is refused: :func:`transient_check`)."""
+    return 3 * len(scene.route.order) if running(scene) else 0
 
 
 def initial(scene: Scene, dtype=jnp.float64):
@@ -162,13 +171,22 @@ def dissipation(forces, z_dot, n: int):
     return jnp.sum(-(jnp.roll(forces, 1) - forces) * g_dot) + jnp.sum(forces * (u_dot + d_dot))
 
 
+def transient_check(scene: Scene) -> tuple[str, str] | None:
+    """(key, why) when a transient of ``scene`` cannot run ``belt_slip`` (the hybrid model's: its
+    statics, modes and Campbell diagrams take the running belt's operating point), else None."""
+    from beltjax.drive.spans import spans_of
+
+    if running(scene) and spans_of(scene).massive:
+        return ("model.effects", "belt_slip's creep and gross slip dynamics are built for the rotational model's "
+                "transient (fidelity = \"rotational\"); the hybrid model takes its running operating point in "
+                "statics, modes and Campbell diagrams only: drop belt_slip from this transient's effects")
+    return None
+
+
 def check(scene: Scene) -> tuple[str, str] | None:
     """(key, why) when ``scene`` cannot list ``belt_slip``, else None."""
-    if n_states(scene) == 0:
+    if not running(scene):
         return None
-    if scene.model.fidelity != "rotational":
-        return ("model.effects", "belt_slip is built for the rotational model (fidelity = \"rotational\"): the "
-                "hybrid model's arcs keep their grip")
     given = set(friction.given(scene))
     missing = [name for i, name in enumerate(scene.route.order) if i not in given]
     if missing:

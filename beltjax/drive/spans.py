@@ -166,7 +166,7 @@ class AncfSpans(SpanModel):
     def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None, Q=None):
         from beltjax.drive.equations import schur_accelerations
 
-        if slip is not None:  # (belt_slip.check refuses the effect on this fidelity)
+        if slip is not None:  # (belt_slip.transient_check refuses a hybrid transient with the effect)
             raise NotImplementedError("belt slip states are built for the rotational model's bars")
         return schur_accelerations(qi, qi_dot, scene, inst, rm, t, speed, Q)
 
