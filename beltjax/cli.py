@@ -474,7 +474,7 @@ def main(argv=None) -> int:
             if getattr(args, name, None) == "":
                 raise InputError("--out: empty directory name" if name == "out" else f"argument {name}: empty file name")
         runtime.enable_compile_cache()
-        with outputs.staged(args.out) as stage:
+        with runtime.sigterm_as_exit(), outputs.staged(args.out) as stage:
             code = args.func(args)
         progress.end_line()
         if stage.written:

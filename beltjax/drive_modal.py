@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import critical, drive, modal, statics
+from beltjax.errors import BeltjaxError
 from beltjax.scene import Scene
 from beltjax.drive.effects import effects_of
 from beltjax.mode_labels import (NAME_SHARE, RIGID_HZ, REPEATED_RTOL, _fine_profile, _half_waves, _labels,  # noqa: F401
@@ -49,7 +50,13 @@ def linearise(qi, scene: Scene, inst, speed=0.0):
     M = J^T M_full J; K = -d F_ii(q_i, 0)/d q_i (the static residual, so geometric,
     elastic and centrifugal stiffness and the curvature of the kinematic map are
     all in); G = -J^T (dF/dq_dot) J (gamma is quadratic in the rates: no linear part).
+    A drive without a single independent coordinate has no modes: a BeltjaxError naming
+    model.fidelity.
     """
+    if drive.n_independent(scene) == 0:
+        raise BeltjaxError("model.fidelity: this drive has no coordinate that may move (every pulley is driven and "
+                           "the rotational model's spans are bars), so it has no modes; give a pulley driven = "
+                           "false, a tensioner, or fidelity = \"ancf\"", "model.fidelity")
     phi = lambda x: drive.full_coordinates(x, scene, inst)  # noqa: E731
     J = jax.jacfwd(phi)(qi)
     M = J.T @ drive.full_mass_matrix(scene, inst) @ J
@@ -78,7 +85,8 @@ def rigid_mode(scene: Scene, inst):
     rigid = [1.0 / (senses[i] * inst.radii[i]) for i, f in enumerate(free) if f]
     rigid += [1.0 / (senses[i] * inst.radii[i]) for i in drive.drive_of(scene).rotors]  # with their pulleys
     rigid += [jnp.zeros(())] * drive.layout_of(scene).coordinates  # the arm does not move
-    return jnp.concatenate([jnp.stack(rigid), drive.spans_of(scene).rigid_slide(inst.span_tangent)])
+    rigid = jnp.stack(rigid) if rigid else jnp.zeros(0, inst.radii.dtype)  # (no free pulley: none)
+    return jnp.concatenate([rigid, drive.spans_of(scene).rigid_slide(inst.span_tangent)])
 
 
 def _complement(w):

@@ -85,8 +85,8 @@ class Stage:
         if self._tmp is None:
             if str(self.target) == "":
                 raise _error(self.target, "empty folder name")
-            parent = _staging_parent(self.target)
-            try:
+            try:  # (a name too long for the file system fails already in looking for the target)
+                parent = _staging_parent(self.target)
                 self._tmp = pathlib.Path(tempfile.mkdtemp(prefix=_PREFIX, dir=parent))
             except OSError as exc:
                 raise _error(self.target, _why(exc)) from None

@@ -117,3 +117,28 @@ def cacheable():
         yield
     finally:
         _errors.EQX_ON_ERROR = old
+
+
+@contextlib.contextmanager
+def sigterm_as_exit():
+    """Within this block SIGTERM ends the process as SystemExit(143) after one line on stderr,
+    so that every ``finally`` runs: a command's staged outputs (:mod:`beltjax.outputs`) are
+    thrown away rather than left beside ``--out``.  The previous handler comes back after the
+    block; off the main thread (where no handler can be set) the block changes nothing."""
+    import signal
+    import sys
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        sys.stderr.write("\nbeltjax: terminated\n")
+        raise SystemExit(128 + signum)
+
+    old = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)

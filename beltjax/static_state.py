@@ -154,6 +154,9 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
     tensions = np.asarray(out["tensions"])
     for nm, T in zip(names, tensions):
         if not T > 0:
+            vc = critical.critical_speed(scene, v) if v != 0.0 else None
+            if vc is not None:  # past the critical speed even unloaded: that is the cause, not the loads
+                raise StaticsError(critical.message(scene, abs(v), vc, None, None))
             because = (": no belt could carry these loads at this installation tension (the pulleys at its ends "
                        "would need an infinite friction coefficient)" if loaded else "")
             raise StaticsError(f"span {nm} would go slack at the {what} (tension {T:.4g} N){because}", "statics")

@@ -256,6 +256,8 @@ def _newton(f, q0, max_iter: int = 40, xtol: float = 1e-11):
     factorised Jacobian, shrinks, |K^-1 f(q + a d)| <= (1 - a/4) |d|.  Unlike a test on
     |f|, it does not depend on the units of the residual (forces and moments mixed).
     """
+    if q0.size == 0:  # nothing to solve (every pulley driven, the spans bars): the installed state
+        return q0, (jnp.ones((), q0.dtype), jnp.zeros((), q0.dtype), jnp.zeros((), q0.dtype))
     alphas = 0.5 ** jnp.arange(8.0)
 
     def cond(state):

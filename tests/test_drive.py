@@ -407,3 +407,26 @@ def test_reduced_equations_agree_with_the_linearisation():
     np.testing.assert_allclose(F, R, rtol=1e-10, atol=1e-10 * np.abs(R).max())
     np.testing.assert_allclose(G, Gl, rtol=1e-10, atol=1e-10 * np.abs(Gl).max())
     assert np.abs(R).max() > 1.0  # a real residual off equilibrium
+
+
+def test_a_drive_whose_every_pulley_is_driven():
+    """Every pulley driven (a motor and a prescribed load, no tensioner): the rotational model has
+    no coordinate, its statics is the installed state and its modal analysis a one-line
+    refusal naming model.fidelity; the hybrid model's spans still vibrate (no rigid mode to
+    take out: the belt cannot slide as a whole)."""
+    from beltjax.errors import BeltjaxError
+
+    txt = (pathlib.Path(__file__).resolve().parents[1] / "scenes" / "two_pulley_T200.toml").read_text()
+    txt = txt.replace("driven = false", "driven = true").replace("inertia = 1.7019e-3 ", "driven = true\n"
+                                                                 "inertia = 1.7019e-3 ", 1)
+    txt = re.sub(r"elements_per_span = \d+", "elements_per_span = 2", txt)
+    rot = loads_scene(txt.replace('fidelity = "ancf"', 'fidelity = "rotational"'))
+    assert drive.n_independent(rot) == 0
+    r = statics.analyse_statics(rot)
+    assert np.allclose(r.span_tensions_N, 200.0, rtol=1e-12)
+    with pytest.raises(BeltjaxError, match="no modes") as e:
+        drive_modal.analyse_modes(rot)
+    assert e.value.key == "model.fidelity"
+    m = drive_modal.analyse_modes(loads_scene(txt))
+    assert m.stable and len(m.frequencies_hz) == drive.n_independent(loads_scene(txt))
+    assert np.all(np.asarray(m.frequencies_hz) > 1.0)  # no rigid mode among them

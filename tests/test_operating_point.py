@@ -190,6 +190,18 @@ def test_a_load_the_belt_cannot_carry_is_a_slack_span():
         statics.analyse_statics(loads_scene(_two_pulley("rotational", torque=40.0)))
 
 
+def test_a_loaded_drive_past_its_critical_speed_is_told_so_not_blamed_on_its_loads():
+    """Loaded and far past its critical speed, the tensioner drive's operating point has slack
+    spans; the cause is the speed (its unloaded state is past the critical speed too), and the
+    one line says so, with the critical speed, rather than blaming the loads."""
+    from beltjax.errors import BeltjaxError
+
+    sc = loads_scene(_tensioner().replace("speed_rpm = 1500.0", "speed_rpm = 30000.0", 1))
+    with pytest.raises(BeltjaxError, match=r"is past the critical speed 91\.\d+ m/s") as e:
+        statics.analyse_statics(sc)
+    assert "slack" not in str(e.value) and "loads" not in str(e.value)
+
+
 def test_capstan_limit_of_a_two_pulley_drive_in_closed_form():
     """The largest torque a two-pulley drive transmits: F_t / F_s = exp(mu theta) on the smaller
     wrap and F_t + F_s = 2 F_0 (fixed centres, equal spans: the belt's length is kept), so

@@ -49,3 +49,26 @@ def test_import_sets_nothing_up_and_configure_does():
 def test_configure_after_a_backend_started_is_refused():
     r = _run(LATE)
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
+
+
+def test_sigterm_discards_a_command_s_staged_outputs(tmp_path):
+    """SIGTERM (what timeout(1), schedulers and `docker stop` send) ends a command as
+    SystemExit(143) with every ``finally`` run: its staged outputs are thrown away, nothing is left
+    beside --out, and the previous handler comes back."""
+    import os
+    import signal
+
+    from beltjax import outputs, runtime
+
+    before = signal.getsignal(signal.SIGTERM)
+    target = tmp_path / "out"
+    try:
+        with runtime.sigterm_as_exit(), outputs.staged(target) as stage:
+            (stage.folder() / "partial.json").write_text("{}")
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):  # the handler runs between bytecodes
+                pass
+        raise AssertionError("SIGTERM did not end the block")
+    except SystemExit as exc:
+        assert exc.code == 143
+    assert list(tmp_path.iterdir()) == [] and signal.getsignal(signal.SIGTERM) is before

@@ -130,6 +130,8 @@ def _parse_pulley(data, i, source) -> Pulley:
     name = t.string("name")
     if not name.strip():
         t.fail("name", "must not be empty")
+    if not name.isprintable():  # a line break or control character would break every table it names
+        t.fail("name", f"must be printable (no line breaks or control characters), got {name!r}")
     if name == TENSIONER:
         t.fail("name", f"{TENSIONER!r} is reserved for the [tensioner] idler")
     center = _vec(t, "center", "pulley")
