@@ -185,3 +185,97 @@ def test_amplitude_table_interpolation_equals_jnp_interp():
         for x in (100.0, 1000.0, 7000.0):
             np.testing.assert_allclose(jax.grad(lambda f: _interp_held(x, xp, f))(fp),
                                        jax.grad(lambda f: jnp.interp(x, xp, f))(fp), rtol=0, atol=1e-15)
+
+
+def _load_refused(path):
+    """The one-line error of a scene that must be refused, with no numpy RuntimeWarning on the way."""
+    import warnings
+
+    from beltjax.scene import load_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(BeltjaxError) as e:
+            load_scene(path)
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith("fluctuation[0].")
+    return msg
+
+
+def _cycle(n=73, cycle=720.0, rpm=lambda a: 800.0 + 10.0 * np.sin(np.radians(2 * a)), x=None):
+    xs = np.linspace(0.0, cycle, n) if x is None else x
+    return "".join(f"{float(a)!r},{float(rpm(a))!r}\n" for a in xs)
+
+
+@pytest.mark.parametrize("rows, x, phrase, h", [
+    # one huge speed sample overflowed the mean: every harmonic 0, RuntimeWarnings, accepted
+    (_cycle().replace("\n10.0,", "\n10.0,1e308,", 1).replace(",1e308,", ",1e308\n#", 1), "angle_deg",
+     "line 3, column 2 (speed_rpm): must lie in [-1e+06, 1e+06] rpm", 24),
+    (_cycle(cycle=7.2e300), "angle_deg", "line 3, column 1 (angle_deg): must lie in [-3600, 3600] deg", 24),
+    (_cycle(x=np.linspace(-7200.0, -6480.0, 73)), "angle_deg", "line 2, column 1 (angle_deg): must lie in [-3600, 3600] deg", 24),
+    (_cycle(x=np.linspace(-0.1, 0.05, 9), rpm=lambda t: 800.0), "time_s", "line 2, column 1 (time_s): must be >= 0", 4),
+    (_cycle(x=np.linspace(0.0, 2e6, 9), rpm=lambda t: 800.0), "time_s", "line 7, column 1 (time_s): must lie in [0, 1e+06] s", 4),
+    # derived harmonics in the fields' ranges: a cycle of 10 turns with a wild speed -> amplitude > 360 deg
+    (_cycle(n=9, cycle=3600.0, rpm=lambda a: 1e6 if a < 1800.0 else 1.0), "angle_deg",
+     "harmonic 1 of its cycle of 3600 deg: amplitude_deg must lie in [0, 360] deg", 4),
+    # ... and a time cycle of 4 us -> 250 kHz..1.25 MHz
+    (_cycle(n=11, x=np.linspace(0.0, 4e-6, 11), rpm=lambda t: 800.0 + 8.0 * math.sin(2 * math.pi * t / 4e-6)),
+     "time_s", "harmonic 5 of its cycle of 4e-06 s: frequency_hz must lie in [0, 1e+06] Hz", 5),
+])
+def test_trace_values_and_harmonics_in_range(tmp_path, rows, x, phrase, h):
+    """Every sample of a trace lies in its column's range (named by line and column), and the
+    harmonics read from it in the ranges of a hand-written harmonic; no RuntimeWarning."""
+    path = _trace_csv(tmp_path, rows=rows, x=x)
+    path.write_text(path.read_text() + f"harmonics = {h}\n")
+    msg = _load_refused(path)
+    assert msg.startswith("fluctuation[0].file: crank.csv: ") and phrase in msg, msg
+
+
+@pytest.mark.parametrize("rows, phrase", [
+    ("".join(f"{float(v)!r}\n" for a in np.linspace(0.0, 720.0, 73) for v in (a, 800.0)), "line 2: 1 value for the header's 2 columns"),
+    ("0.0,800.0\n10.0,800.0,1.0\n20.0,800.0\n720.0,800.0\n", "line 3: 3 values for the header's 2 columns"),
+    ("0.0,800.0\n# a comment\n\n10.0,fast\n20.0,800.0\n720.0,800.0\n", "line 5, column 2 (speed_rpm): not a number"),
+    ("0.0,800.0\n10.0,800.0\n20.0,-800.0\n720.0,800.0\n", "line 4: speed_rpm must be > 0"),
+])
+def test_trace_rows_are_checked_one_by_one(tmp_path, rows, phrase):
+    """Each row has the header's number of columns (the values are not regrouped), named by line."""
+    msg = _load_refused(_trace_csv(tmp_path, rows=rows))
+    assert phrase in msg, msg
+
+
+@pytest.mark.parametrize("name, phrase", [
+    ("/etc/passwd", "is an absolute path"),
+    ("../outside/crank.csv", "leads out of the scene file's folder through '..'"),
+    ("sub/../crank.csv", "through '..'"),
+    ("link.csv", "is a link to a file outside the scene file's folder"),
+])
+def test_trace_file_stays_in_the_scene_folder(tmp_path, name, phrase):
+    """A trace file is named relative to the scene file's folder and cannot leave it."""
+    (tmp_path / "outside").mkdir()
+    (tmp_path / "outside" / "crank.csv").write_text("angle_deg,speed_rpm\n" + _cycle())
+    here = tmp_path / "here"
+    here.mkdir()
+    (here / "link.csv").symlink_to(tmp_path / "outside" / "crank.csv")
+    path = _trace_csv(here, rows=_cycle())
+    path.write_text(path.read_text().replace('file = "crank.csv"', f'file = "{name}"'))
+    msg = _load_refused(path)
+    assert msg.startswith(f"fluctuation[0].file: {name} ") and phrase in msg, msg
+    (here / "sub").mkdir()
+    path.write_text(path.read_text().replace(f'file = "{name}"', 'file = "sub/crank.csv"'))
+    (here / "sub" / "crank.csv").write_text("angle_deg,speed_rpm\n" + _cycle())
+    from beltjax.scene import load_scene
+
+    assert len(load_scene(path).fluctuations) == 24  # a file in a folder below the scene's is read
+
+
+@pytest.mark.parametrize("first, shown", [
+    ("password=hunter2-this-is-a-secret-line-of-some-other-file", "1 column, not a header line"),
+    (",".join(f"secretcolumn{i:03d}" for i in range(20)), "20 columns: secretcolumn000, secretcolumn001"),
+])
+def test_trace_errors_do_not_quote_the_file(tmp_path, first, shown):
+    """A file that is not a trace is refused without quoting its text: at most its header's names,
+    when they are words, cut to 60 characters."""
+    path = _trace_csv(tmp_path, rows="")
+    (tmp_path / "crank.csv").write_text(first + "\nmore secret text\n")
+    msg = _load_refused(path)
+    assert shown in msg and "hunter2" not in msg and "more secret" not in msg and "secretcolumn004" not in msg, msg

@@ -76,11 +76,11 @@ def test_a_measured_trace_is_written_as_its_harmonics(tmp_path):
 
 
 def test_hostile_strings_and_values_read_back():
-    """Quotes, backslashes, control characters, TOML syntax and non-ASCII in names and the
-    description; a name that is not a bare key in [initial] rotation_deg."""
+    """Quotes, backslashes, TOML syntax and non-ASCII in names, control characters in the
+    description (a name must be printable); a name that is not a bare key in [initial] rotation_deg."""
     text = (ROOT / "scenes" / "sim_two_pulley_release.toml").read_text()
     scene = load_scene(ROOT / "scenes" / "sim_two_pulley_release.toml")
-    odd = 'alt "x" \\ ]\t= #ü 漢'
+    odd = 'alt "x" \\ ] = #ü 漢'
     free = "alternator"  # a free pulley, turned by [initial] rotation_deg
     text = text.replace(f'"{free}"', tomlwrite.string(odd)).replace(f"{{ {free} =", f"{{ {tomlwrite.string(odd)} =")
     text = 'description = ' + tomlwrite.string('line\nnext "q" \\ \x7f [belt]') + "\n" + text.partition("\n")[2]

@@ -30,12 +30,18 @@ four-stroke engine's two revolutions), with the angle fluctuation's amplitude in
 the relative speed (d(delta theta)/d alpha = omega / omega_mean - 1): it scales with the speed, as
 orders do.  A trace against time gives frequencies k / T; its mean speed must be the pulley's
 ``speed_rpm`` (within 2 %).  The cycle starts at the run's start.
+
+The file is named relative to the scene file's folder and lies inside it (no absolute path, no
+``..``, no link out of it).  Every row has the header's columns; every sample lies in its column's
+range (:data:`COLUMNS`) and every harmonic read from it in the ranges of a hand-written one.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import pathlib
+import re
 
 import numpy as np
 
@@ -50,6 +56,14 @@ HARMONICS = 24
 GRID = 1024
 #: a time trace's mean speed must be the pulley's speed to this fraction
 SPEED_TOLERANCE = 0.02
+#: the accepted range of each column of a trace: speed as ``pulley.speed_rpm``, time as the schema's
+#: times; the crank angle ten turns either way (a cycle is one or two turns, 720 deg for a
+#: four-stroke engine; a longer one gives orders below 0.05, which no drive has)
+COLUMNS = {"speed_rpm": schema.FIELDS["pulley.speed_rpm"], "time_s": schema.FIELDS["torque.t_start_s"],
+           "angle_deg": schema.Field("deg", -3600.0, 3600.0, "ten turns either way: a crank cycle is one or two turns")}
+#: a trace file's name and header are shown cut to this many characters
+NAME_CHARS = 60
+_WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def parse(data, drive, base: str, table, num, source) -> tuple[Fluctuation, ...]:
@@ -69,7 +83,7 @@ def parse(data, drive, base: str, table, num, source) -> tuple[Fluctuation, ...]
                 if t.has(k):
                     t.fail(k, "a trace (file) gives its own harmonics: leave this key out")
             n = t.integer("harmonics", required=False, default=HARMONICS, minimum=1, maximum=GRID // 4)
-            out += _trace(t, pulley, os.path.join(base, t.string("file", nonempty=True)), n, rpm, f"fluctuation[{i}]")
+            out += _trace(t, pulley, base, n, rpm, f"fluctuation[{i}]")
             continue
         if t.has("harmonics"):
             t.fail("harmonics", "only a trace (file) has harmonics")
@@ -115,53 +129,125 @@ def _amplitude(t, num):
     return _arr(amps), _arr(speeds)
 
 
-def _trace(t, pulley: str, path: str, harmonics: int, rpm: float, key: str) -> list[Fluctuation]:
-    """The harmonics of a measured speed trace (see the module docstring)."""
+def _trace_file(t, base: str) -> tuple[str, str]:
+    """(path, name as messages show it) of a trace's ``file``: a path relative to ``base`` (the
+    scene file's folder) that stays inside it; an absolute path, ``..`` or a link leading out of the
+    folder is refused naming the key."""
+    name = t.string("file", nonempty=True)
+    shown = name if name.isprintable() else repr(name)
+    shown = shown if len(shown) <= NAME_CHARS else shown[:NAME_CHARS - 3] + "..."
+    if "\0" in name:
+        t.fail("file", "a file name cannot hold a NUL character")
+    pure = pathlib.PurePath(name)
+    if pure.is_absolute():
+        t.fail("file", f"{shown} is an absolute path: a trace file is named relative to the scene file's folder")
+    if ".." in pure.parts:
+        t.fail("file", f"{shown} leads out of the scene file's folder through '..': a trace file lies inside it")
+    root = pathlib.Path(base).resolve()
+    try:
+        real = (root / pure).resolve()
+    except (OSError, RuntimeError):  # a loop of links
+        t.fail("file", f"{shown}: a link that cannot be resolved")
+    if not real.is_relative_to(root):
+        t.fail("file", f"{shown} is a link to a file outside the scene file's folder: a trace file lies inside it")
+    return str(root / pure), shown
 
-    def fail(_key, msg):
-        t.fail("file", f"{os.path.basename(path)}: {msg}")
 
-    text = textfile.read_text(path, "csv", fail)
-    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+def _header(head: list[str]) -> str:
+    """A header's columns as a message names them: word names only, at most :data:`NAME_CHARS`
+    characters in all (a first line that is not a header is not quoted)."""
+    n = f"{len(head)} column{'s' if len(head) != 1 else ''}"
+    if not all(_WORD.fullmatch(h) for h in head):
+        return f"{n}, not a header line (a name that is not a word of letters, digits and _)"
+    names = ", ".join(head)
+    return f"{n}: {names if len(names) <= NAME_CHARS else names[:NAME_CHARS - 3] + '...'}"
+
+
+def _read_trace(text: str, fail) -> tuple[str, np.ndarray, np.ndarray]:
+    """(x column's name, x, speed_rpm) of a trace's CSV text, every value in its column's range
+    (:data:`COLUMNS`); ``fail(message)`` names the line and column, never quotes the text."""
+    lines = [(n, ln) for n, ln in enumerate(text.splitlines(), start=1)
+             if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        fail("file", "no header")
-    head = [h.strip() for h in lines[0].split(",")]
+        fail("no header")
+    head = [h.strip() for h in lines[0][1].split(",")]
     x_name = next((h for h in ("angle_deg", "time_s") if h in head), None)
     if x_name is None or "speed_rpm" not in head:
-        fail("file", f"needs the columns angle_deg (or time_s) and speed_rpm, has {', '.join(head)}")
-    ix, iy = head.index(x_name), head.index("speed_rpm")
-    try:
-        rows = np.array([[float(c) for c in ln.split(",")] for ln in lines[1:]], dtype=float).reshape(-1, len(head))
-    except ValueError:
-        fail("file", "a value that is not a number, or a row with another number of columns")
-    x, y = rows[:, ix], rows[:, iy]
+        fail(f"needs the columns angle_deg (or time_s) and speed_rpm; its header (line {lines[0][0]}) has "
+             f"{_header(head)}")
+    for c in (x_name, "speed_rpm"):
+        if head.count(c) > 1:
+            fail(f"the header (line {lines[0][0]}) has the column {c} twice")
+    cols = [(head.index(c), c) for c in (x_name, "speed_rpm")]
+    rows = []
+    for n, ln in lines[1:]:
+        cells = ln.split(",")
+        if len(cells) != len(head):
+            fail(f"line {n}: {len(cells)} value{'s' if len(cells) != 1 else ''} for the header's {len(head)} columns")
+        row = []
+        for i, c in cols:
+            try:
+                v = float(cells[i])
+            except ValueError:
+                fail(f"line {n}, column {i + 1} ({c}): not a number")
+            msg = schema.problem(COLUMNS[c], v)
+            if msg:
+                fail(f"line {n}, column {i + 1} ({c}): {msg}")
+            row.append(v)
+        rows.append(row)
+    data = np.array(rows, dtype=np.float64).reshape(-1, 2)
+    x, y = data[:, 0], data[:, 1]
     if len(x) < 4:
-        fail("file", f"{len(x)} sample{'s' if len(x) != 1 else ''}: a cycle needs at least 4")
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-        fail("file", "a value that is not finite")
+        fail(f"{len(x)} sample{'s' if len(x) != 1 else ''}: a cycle needs at least 4")
     if np.any(np.diff(x) <= 0):
         j = int(np.flatnonzero(np.diff(x) <= 0)[0])
-        fail("file", f"{x_name} must increase from sample to sample (row {j + 2} to {j + 3}: {float(x[j])!r} then {float(x[j + 1])!r})")
+        fail(f"{x_name} must increase from sample to sample (line {lines[j + 1][0]} to {lines[j + 2][0]}: "
+             f"{float(x[j])!r} then {float(x[j + 1])!r})")
     if np.any(y <= 0):
-        fail("file", "speed_rpm must be > 0 (in the belt's direction of travel)")
+        fail(f"line {lines[int(np.flatnonzero(y <= 0)[0]) + 1][0]}: speed_rpm must be > 0 (in the belt's "
+             "direction of travel)")
+    return x_name, x, y
+
+
+def _trace(t, pulley: str, base: str, harmonics: int, rpm: float, key: str) -> list[Fluctuation]:
+    """The harmonics of a measured speed trace (see the module docstring), each in the range of a
+    hand-written harmonic's fields (``fluctuation.order`` or ``frequency_hz``, ``amplitude_deg``,
+    ``phase_deg``)."""
+    path, shown = _trace_file(t, base)
+
+    def fail(msg):
+        t.fail("file", f"{shown}: {msg}")
+
+    x_name, x, y = _read_trace(textfile.read_text(path, "csv", lambda _path, msg: fail(msg)), fail)
     if harmonics > (len(x) - 1) // 2:
         t.fail("harmonics", f"{harmonics} harmonics need at least {2 * harmonics + 1} samples, the trace has {len(x)}")
     cycle = x[-1] - x[0]
-    grid = x[0] + cycle * np.arange(GRID) / GRID
-    w = np.interp(grid, x, y)
-    mean = float(np.mean(w))
-    R = 2.0 * np.fft.rfft(w / mean - 1.0)[1:harmonics + 1] / GRID  # relative speed: sum |R_k| cos(k phi + arg R_k)
     k = np.arange(1, harmonics + 1)
-    if x_name == "angle_deg":
-        per, rate = "rev", k * 360.0 / cycle
-        amp = np.abs(R) / rate  # rad: the integral of the relative speed over the crank angle
-    else:
-        if abs(mean / abs(rpm) - 1.0) > SPEED_TOLERANCE if rpm else True:
-            fail("file", f"the trace's mean speed {mean:.6g} rpm is not the pulley's speed_rpm {abs(rpm)!r} "
-                         f"(within {100 * SPEED_TOLERANCE:g} %): a trace against time carries its own speed")
-        per, rate = "s", k / cycle
-        amp = (mean * 2 * math.pi / 60.0) * np.abs(R) / (2 * math.pi * rate)
-    phase = np.degrees(np.angle(R))  # the integral of cos(x + psi) is sin(x + psi)
+    try:
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            grid = x[0] + cycle * np.arange(GRID) / GRID
+            w = np.interp(grid, x, y)
+            mean = float(np.mean(w))
+            R = 2.0 * np.fft.rfft(w / mean - 1.0)[1:harmonics + 1] / GRID  # relative speed: sum |R_k| cos(k phi + arg R_k)
+            if x_name == "angle_deg":
+                per, rate = "rev", k * 360.0 / cycle
+                amp = np.abs(R) / rate  # rad: the integral of the relative speed over the crank angle
+            else:
+                per, rate = "s", k / cycle
+                amp = (mean * 2 * math.pi / 60.0) * np.abs(R) / (2 * math.pi * rate)
+            amp, phase = np.degrees(amp), np.degrees(np.angle(R))  # the integral of cos(x + psi) is sin(x + psi)
+    except FloatingPointError:
+        fail("its harmonics overflow float64")
+    if per == "s" and (abs(mean / abs(rpm) - 1.0) > SPEED_TOLERANCE if rpm else True):
+        fail(f"the trace's mean speed {mean:.6g} rpm is not the pulley's speed_rpm {abs(rpm)!r} "
+             f"(within {100 * SPEED_TOLERANCE:g} %): a trace against time carries its own speed")
+    unit = "deg" if per == "rev" else "s"
+    fields = (("order" if per == "rev" else "frequency_hz", rate), ("amplitude_deg", amp), ("phase_deg", phase))
+    for f, values in fields:
+        for j, v in enumerate(values):
+            msg = schema.problem(schema.FIELDS[f"fluctuation.{f}"], float(v))
+            if msg:
+                fail(f"harmonic {j + 1} of its cycle of {cycle:.6g} {unit}: {f} {msg}")
     name = os.path.basename(path)
-    return [Fluctuation(pulley=pulley, per=per, rate=_arr(r), amplitude_deg=_arr(math.degrees(a)), phase_deg=_arr(p),
+    return [Fluctuation(pulley=pulley, per=per, rate=_arr(r), amplitude_deg=_arr(a), phase_deg=_arr(p),
                         file=name, key=key) for r, a, p in zip(rate, amp, phase)]
