@@ -197,7 +197,8 @@ def crossings(rpm, freqs, orders=DEFAULT_ORDERS, labels=None, labels_along=None)
             g = f - line
             for i in range(len(rpm) - 1):
                 a, b = g[i], g[i + 1]
-                if not (np.isfinite(a) and np.isfinite(b)) or a == b or a * b > 0 or (a == 0 and i > 0):
+                same_side = np.sign(a) * np.sign(b) > 0  # (a * b overflows for huge order lines)
+                if not (np.isfinite(a) and np.isfinite(b)) or a == b or same_side or (a == 0 and i > 0):
                     continue
                 s = a / (a - b)
                 r = rpm[i] + s * (rpm[i + 1] - rpm[i])
@@ -291,11 +292,12 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
     tracked across speeds (:func:`campbell_modes`); the result holds every mode that is among
     the lowest ``n_modes`` at some speed (so possibly more than n_modes curves; a repeated
     pair is kept whole), each curve labelled from its shape at every speed.  The scene is
-    checked as a scene file is; a speed that is NaN, infinite or negative, an order that is
-    not positive and finite, or n_modes below 1 is a one-line
+    checked as a scene file is; a speed outside the range of ``drive.rpm`` (NaN, infinite,
+    negative, above 1e6), an order outside that of ``fluctuation.order`` (:mod:`beltjax.schema`:
+    (0, 1000]), or n_modes below 1 is a one-line
     :class:`beltjax.errors.BeltjaxError` naming the argument.
     """
-    from beltjax import validate
+    from beltjax import schema, validate
     from beltjax.errors import BeltjaxError
 
     validate.check_scene(scene)
@@ -303,6 +305,10 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
     o = np.asarray(orders, dtype=float).reshape(-1) if np.ndim(orders) <= 1 else np.zeros(0)
     if o.size == 0 or not np.all(np.isfinite(o) & (o > 0)):
         raise BeltjaxError(f"expected positive finite excitation orders, got {orders!r}", "orders")
+    order = schema.FIELDS["fluctuation.order"]  # multiples of the drive pulley's speed, as a scene's
+    for i, k in enumerate(o):
+        if schema.problem(order, k):
+            raise BeltjaxError(schema.problem(order, k), f"orders[{i}]")
     if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise BeltjaxError(f"must be an integer >= 1, got {n_modes!r}", "n_modes")
     statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])), allow_supercritical=True, with_unloaded=False)

@@ -173,6 +173,34 @@ def test_labels_follow_kind_and_member_not_ordinals():
 # --------------------------------------------------------------------------- the two-pulley bench
 
 
+def test_orders_beyond_the_schema_are_refused_naming_the_order():
+    """An order outside fluctuation.order's (0, 1000] (1e300 listed crossings "order 1e+300x" with
+    overflow warnings): a one-line error naming orders[i], before any computation."""
+    import warnings
+
+    from beltjax.errors import BeltjaxError
+
+    sc = load_scene(SCENES / "two_pulley_T200.toml")
+    for orders, key in (((2.0, 1e300), "orders[1]"), ((1000.5,), "orders[0]")):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            with pytest.raises(BeltjaxError) as exc:
+                campbell.analyse_campbell(sc, [0.0, 100.0], orders=orders)
+        assert exc.value.key == key and str(exc.value).startswith(f"{key}: must lie in [0, 1000]"), str(exc.value)
+
+
+def test_crossings_of_huge_order_lines_do_not_overflow():
+    """The sign test of a crossing never multiplies two differences (1e300 x 1e300 overflowed)."""
+    import warnings
+
+    rpm = np.array([0.0, 50.0, 100.0])
+    freqs = np.array([[10.0], [10.0], [10.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        got = campbell.crossings(rpm, freqs, orders=(1e300, 6.0))
+    assert [(c["order"], round(c["rpm"], 6)) for c in got] == [(1e300, 0.0), (6.0, 100.0)]
+
+
 def _mesh(scene, n):
     return eqx.tree_at(lambda s: s.model, scene, dataclasses.replace(scene.model, elements_per_span=n))
 

@@ -86,3 +86,15 @@ def test_installed_entry_point_runs(tmp_path):
     bad = subprocess.run([exe, *_with("--EA", "-5"), "--out", str(tmp_path)], capture_output=True, text=True,
                          timeout=300)
     assert bad.returncode != 0 and len(bad.stderr.strip().splitlines()) == 1 and "--EA" in bad.stderr
+
+
+def test_campbell_orders_beyond_the_schema_are_one_line(tmp_path):
+    """`campbell --orders 1e300` exited 0 with overflow warnings and crossings "order 1e+300x"."""
+    scene = pathlib.Path(__file__).resolve().parents[1] / "scenes" / "two_pulley_T200.toml"
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "beltjax", "campbell", str(scene), "--rpm", "0:100:50", "--orders",
+                        "2,1e300", "--out", str(out)], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip() == ("beltjax: error: orders[1]: must lie in [0, 1000] - (cycles per revolution: engines "
+                                "excite orders up to about 20), got 1e+300"), r.stderr
+    assert not out.exists()

@@ -15,6 +15,7 @@ import json
 import math
 import pathlib
 import tomllib
+import warnings
 
 import jax.numpy as jnp
 import numpy as np
@@ -301,6 +302,71 @@ def test_cli_bad_spec_is_one_line(scene_file, tmp_path, capsys):
     assert cli.main(["optimize", str(scene_file), str(spec), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("beltjax: error: variable[2].parameter: belt.lenght") and "\n" not in err, err
+
+
+_BAND = {"kind": "resonance_band", "orders": [2.0], "rpm": [1800, 2200]}
+#: numbers of the optimisation file outside their accepted range (beltjax.optimize.problem.RANGES,
+#: the schema's drive.rpm and fluctuation.order): refused when read, naming the key and the range
+_OUT_OF_RANGE = [
+    (("objective", 0), dict(_BAND, rpm=[1800, 1e12]), "objective[0].rpm[1]", "must lie in [0, 1e+06] rpm"),
+    (("objective", 0), dict(_BAND, margin_hz=1e300), "objective[0].margin_hz", "must lie in [0, 1e+06] Hz"),
+    (("objective", 0), dict(_BAND, tolerance_hz=1e7), "objective[0].tolerance_hz", "must lie in [0, 1e+06] Hz"),
+    (("objective", 0), dict(_BAND, orders=[2.0, 1e300]), "objective[0].orders[1]", "must lie in [0, 1000]"),
+    (("objective", 0), dict(_BAND, orders=[1001]), "objective[0].orders[0]", "cycles per revolution"),
+    (("objective", 0, "weight"), 1e300, "objective[0].weight", "must lie in [0, 1e+06]"),
+    (("steps",), 10**9, "steps", "must lie in [1, 100000]"),
+    (("patience",), 10**6, "patience", "must lie in [1, 100000]"),
+    (("min_steps",), 10**6, "min_steps", "must lie in [0, 100000]"),
+    (("learning_rate",), 1e300, "learning_rate", "must lie in [1e-06, 10]"),
+    (("tolerance",), 5.0, "tolerance", "must lie in [0, 1]"),
+    (("variable", 0, "scale"), 1e-300, "variable[0].scale", "x (upper - lower) = [1e-07, 100]"),
+    (("constraint",), [{"kind": "static_tension", "min": 1e300}], "constraint[0].min", "must lie in [0, 1e+08] N"),
+    (("constraint",), [{"kind": "arm_angle_deg", "max": 1e5}], "constraint[0].max", "must lie in [-3600, 3600] deg"),
+    (("constraint",), [{"kind": "no_overlap", "clearance": 1e300}], "constraint[0].clearance",
+     "must lie in [0, 100] m"),
+    (("constraint",), [{"kind": "min_wrap_deg", "value": 100, "tolerance": 1e300}], "constraint[0].tolerance",
+     "must lie in [0, 360] deg"),
+    (("constraint",), [{"kind": "no_overlap", "weight": 1e300}], "constraint[0].weight", "must lie in [0, 1e+06]"),
+]
+
+
+@pytest.mark.parametrize("path, value, key, phrase", _OUT_OF_RANGE, ids=[b[2] for b in _OUT_OF_RANGE])
+def test_numbers_out_of_range_are_refused_when_read(scene, path, value, key, phrase):
+    """A number no run can use (the fuzzer's rpm = [1800, 1e12] failed after 40 s as an infeasible
+    start, margin_hz = 1e300 after 55 s as a non-finite loss, orders = [1e300] said "goal met")."""
+    with pytest.raises(optimize.OptimizeError) as exc:
+        optimize.parse(_with(path, value), scene)
+    msg = str(exc.value)
+    assert exc.value.key == key and msg.startswith(key + ": ") and phrase in msg and "\n" not in msg, msg
+
+
+def test_arm_motion_settle_time_out_of_range():
+    sc = load_scene(REPO / "scenes" / "fead_8pulley.toml")
+    spec = {"variable": [{"parameter": "tensioner.damping", "lower": 0.0, "upper": 2.0}],
+            "objective": [{"kind": "arm_motion", "rpm": [800, 1000], "settle_s": 1e300}]}
+    with pytest.raises(optimize.OptimizeError, match=r"^objective\[0\]\.settle_s: must be a finite time in \[0, 100\]"):
+        optimize.parse(spec, sc)
+
+
+def test_a_parameter_path_with_white_space_is_quoted(scene):
+    """ " tensioner.pivot.x" was named tensioner.pivot.x, which looks valid."""
+    with pytest.raises(optimize.OptimizeError) as exc:
+        optimize.parse(_with(("variable", 0, "parameter"), " tensioner.pivot.x"), scene)
+    assert str(exc.value).startswith("variable[0].parameter: ' tensioner.pivot.x': "), str(exc.value)
+
+
+@pytest.mark.parametrize("edit", [("rpm = [1800, 2200]", "rpm = [1800, 1e12]"), ("orders = [2.0]", "orders = [1e300]"),
+                                  ("speeds = 5", "speeds = 5\nmargin_hz = 1e300")])
+def test_cli_refuses_out_of_range_numbers_at_once(scene_file, tmp_path, capsys, edit):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.replace(*edit))
+    out = tmp_path / "o"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert cli.main(["optimize", str(scene_file), str(spec), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("beltjax: error: objective[0].") and "must lie in" in err and "\n" not in err, err
+    assert "RuntimeWarning" not in err and not out.exists()
 
 
 # --------------------------------------------------------------------------- the stop rule

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import pathlib
 import subprocess
@@ -444,3 +445,68 @@ def test_flags_on_a_computed_cycle_keep_their_numbers():
     pooled = tables.pooled({"arm_p2p_deg": res["response_arm_p2p_deg"]}, res)["arm_p2p_deg"]
     assert tables.statistics(pooled)["count"] == 1 and tables.statistics(pooled)["max"] == 1.0
 
+
+
+# --------------------------------------------------------------------------- absurd spreads
+
+_EA = {"parameter": "belt.EA", "distribution": "normal", "nominal": True}
+_SPREADS = [
+    (dict(_EA, std=1e300), "random[0].std", "the band 111190 +- 3 std = [-3e+300, 3e+300] leaves the accepted "
+                                            "range of belt.EA, [1, 1e+10] N"),
+    (dict(_EA, std=4e4), "random[0].std", "= [-8810, 231190] leaves the accepted range of belt.EA"),
+    (dict(_EA, std=1.5e308), "random[0].std", "is not finite"),
+    (dict(_EA, std=0.0), "random[0].std", "must be > 0, got 0.0"),
+    (dict(_EA, distribution="uniform", nominal=False, mean=5e9, tolerance=6e9), "random[0].tolerance",
+     "the band 5e+09 +- tolerance = [-1e+09, 1.1e+10] leaves"),
+    (dict(_EA, nominal=False, mean=9e9, relative_tolerance=0.5), "random[0].relative_tolerance",
+     "+- relative_tolerance x |centre| = [4.5e+09, 1.35e+10] leaves"),
+    (dict(_EA, tolerance=0), "random[0].tolerance", "must be > 0"),
+]
+
+
+@pytest.mark.parametrize("axis, key, phrase", _SPREADS, ids=[f"{k}-{i}" for i, (_, k, _) in enumerate(_SPREADS)])
+def test_a_spread_beyond_the_parameters_range_is_refused(scene, axis, key, phrase):
+    """A band centre +- spread (3 std for std) must lie in the parameter's accepted range, as low
+    and high must (std = 1e300 exited 1 with a numpy overflow warning, every case invalid_value)."""
+    with pytest.raises(sweep.SweepError) as exc:
+        sweep.check_spec(scene, sweep.parse_spec({"samples": 2, "random": [axis]}))
+    msg = str(exc.value)
+    assert exc.value.key == key and msg.startswith(key + ": ") and phrase in msg and "\n" not in msg, msg
+
+
+def test_a_spread_inside_the_range_is_drawn(scene):
+    values = sweep.cases(scene, sweep.parse_spec({"samples": 200, "random": [dict(_EA, std=3e4)]}))["belt.EA"]
+    assert np.all(np.isfinite(values)) and abs(np.std(values) / 3e4 - 1) < 0.2
+
+
+def test_cli_huge_std_is_one_line_without_a_warning(small_scene_file, tmp_path, capfd):
+    """The fuzzer's case 13, run as a user runs it (a child process: every warning reaches stderr)."""
+    spec = tmp_path / "huge_std.toml"
+    spec.write_text('outputs = ["statics"]\n[[random]]\nparameter = "belt.EA"\ndistribution = "normal"\n'
+                    'nominal = true\nstd = 1e300\nsamples = 2\n')
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "beltjax", "sweep", str(small_scene_file), str(spec), "--out", str(out)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip().splitlines() == [r.stderr.strip()] and "RuntimeWarning" not in r.stderr, r.stderr
+    assert r.stderr.startswith("beltjax: error: random[0].std: the band") and not out.exists()
+
+
+def test_draws_and_statistics_never_warn():
+    """Past the checks (an API caller's axis), a draw that overflows is a non-finite value (its case
+    invalid_value), and the statistics of huge values are computed without overflow."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        axis = sweep.RandomAxis("belt.EA", "normal", 1.0, std=1e308)
+        assert not np.all(np.isfinite(sweep._draw(axis, 1.0, 8, 0)))
+        s = sweep.statistics(np.array([1e308, -1e308, 1.7e308]))
+    assert s["mean"] == pytest.approx(1.7e308 / 3) and math.isfinite(s["std"]) and s["p50"] == 1e308
+
+
+def test_a_parameter_path_with_white_space_is_quoted(scene):
+    """" belt.EA" was named belt.EA, which looks valid."""
+    with pytest.raises(sweep.SweepError) as exc:
+        sweep.check_spec(scene, sweep.parse_spec({"grid": [{"parameter": " belt.EA", "values": [1e5]}]}))
+    assert str(exc.value).startswith("grid[0].parameter: ' belt.EA': "), str(exc.value)

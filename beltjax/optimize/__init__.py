@@ -68,6 +68,17 @@ reported as satisfied; defaults 0.5 deg, 2 N, 0.2 deg, 0.2 mm).  Penalty units: 
 1 deg, 1 mm.  Static quantities (tensions, hub forces, wraps, arm angle, gaps) are those of the
 static state at the scene's own drive speed (what ``beltjax statics`` reports).
 
+Accepted ranges (a number outside is refused when the file is read, naming its key, the range
+and its reason; :data:`beltjax.optimize.problem.RANGES`): ``rpm`` that of the scene's drive
+speeds (``drive.rpm`` of :mod:`beltjax.schema`, [0, 1e6] rpm), each of ``orders`` that of a
+scene's fluctuation orders (``fluctuation.order``, (0, 1000])), ``margin_hz`` and
+``tolerance_hz`` [0, 1e6] Hz, ``weight`` [0, 1e6], ``steps`` and ``patience`` 1 to 1e5,
+``min_steps`` 0 to 1e5, ``learning_rate`` [1e-6, 10], ``tolerance`` [0, 1], ``scale`` 1e-6 to
+1e3 x (upper - lower), ``settle_s`` that of ``beltjax orders --settle-s``, ``clearance`` [0, 100] m,
+a tension window that of ``span.tension`` ([0, 1e8] N), an arm-angle window that of
+``tensioner.arm_angle_deg``, a constraint's ``tolerance`` one in its own units (at most 360 deg
+of wrap, 1e8 N, 3600 deg of arm angle, 100 m, a slip margin of 2).
+
 The resonance measure
 ---------------------
 For one order k and one mode m, g(s) = f_m(s) - k s / 60 at the sampled speeds s of the band.

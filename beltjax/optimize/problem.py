@@ -8,8 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from beltjax import drive, friction, parameters, textfile, tomltable
+from beltjax import drive, friction, parameters, schema, textfile, tomltable
 from beltjax.errors import BeltjaxError
+from beltjax.schema import Field
 from beltjax.scene import MAX_ELEMENTS_PER_SPAN, Scene
 from beltjax.tomltable import describe
 
@@ -44,6 +45,61 @@ _CONSTRAINT_KEYS = {
 
 class OptimizeError(BeltjaxError):
     """A bad optimisation file or an impossible start: one line naming the key (``key``)."""
+
+
+#: most optimiser steps (steps, patience, min_steps)
+MAX_STEPS = 100_000
+_STEPS_WHY = "a day of steps at 1 s each; a start stalls long before"
+_HZ = schema.FIELDS["span_load.frequency_hz"]  # [0, 1e6] Hz: far above any belt-drive excitation
+_TENSION = Field("N", 0.0, schema.FIELDS["span.tension"].high, "a span tension: beyond a conveyor's 1e7 N", ">=0")
+#: accepted range of each number of the optimisation file (beltjax.schema's Field: unit, range,
+#: reason); a drive speed (rpm) is in that of ``drive.rpm``, an order in that of ``fluctuation.order``,
+#: a tension window in that of ``span.tension``, an arm-angle window in that of ``tensioner.arm_angle_deg``
+RANGES: dict[str, Field] = {
+    "steps": Field("", 1, MAX_STEPS, _STEPS_WHY),
+    "patience": Field("", 1, MAX_STEPS, _STEPS_WHY),
+    "min_steps": Field("", 0, MAX_STEPS, _STEPS_WHY),
+    "learning_rate": Field("", 1e-6, 10.0, "Adam's step in units of each variable's scale: smaller, 1e5 steps "
+                           "move a variable by less than a tenth of its scale; larger, every step leaps past the "
+                           "bounds", ">0"),
+    "tolerance": Field("", 0.0, 1.0, "relative to the smoothed loss: 1 is all of it", ">=0"),
+    "scale": Field("x (upper - lower)", 1e-6, 1e3, "a typical change: from a millionth of the bounds' width, "
+                   "which Adam's steps cannot cross, to a thousand times it, every step a leap past the bounds",
+                   ">0"),
+    "weight": Field("", 0.0, 1e6, "a term's relative weight (objectives 1, constraints 100 by default): a "
+                    "million already decides the loss alone", ">=0"),
+    "margin_hz": _HZ,
+    "tolerance_hz": _HZ,
+    "clearance": Field("m", 0.0, 1e2, "a gap between rims as wide as the largest drum (100 m)", ">=0"),
+}
+#: the range of a constraint's ``tolerance`` (its own units) by kind
+_TOLERANCE_RANGE = {
+    "min_wrap_deg": Field("deg", 0.0, 360.0, "a wrap angle lies in (0, 360) deg", ">=0"),
+    "static_tension": _TENSION,
+    "arm_angle_deg": Field("deg", 0.0, 3600.0, "ten turns", ">=0"),
+    "no_overlap": RANGES["clearance"],
+    "min_slip_margin": Field("-", 0.0, 2.0, "the margin asked for lies in (-1, 1)", ">=0"),
+}
+#: the range of a constraint's ``min`` and ``max`` by kind
+_WINDOW_RANGE = {"static_tension": _TENSION, "arm_angle_deg": schema.FIELDS["tensioner.arm_angle_deg"]}
+
+
+def _in(t: tomltable.Table, k: str, f: Field, v):
+    """``v``, read at key ``k`` of table ``t`` (or its default), if it is None or in the range of
+    ``f``; else ``t.fail`` naming the key with the range and its reason (:func:`beltjax.schema.problem`)."""
+    msg = None if v is None else schema.problem(f, v)
+    if msg:
+        t.fail(k, msg)
+    return v
+
+
+def _path_error(exc: BeltjaxError, path: str) -> str:
+    """The message of a :class:`beltjax.parameters.ParameterError` about ``path``, the path quoted
+    (repr) when it holds white space or a character that would not show: " belt.EA" read as belt.EA."""
+    msg = str(exc)
+    if path.isprintable() and not any(c.isspace() for c in path):
+        return msg
+    return f"{path!r}: {msg[len(path) + 1:].strip()}" if msg.startswith(f"{path}:") else msg
 
 
 # --------------------------------------------------------------------------- the problem
@@ -137,7 +193,7 @@ def _parse_variable(d, i: int, scene: Scene) -> Variable:
     try:
         parameters.check(scene, path)
     except parameters.ParameterError as exc:
-        raise OptimizeError(str(exc), f"{key}.parameter") from None
+        raise OptimizeError(_path_error(exc, path), f"{key}.parameter") from None
     lo = t.number("lower", required=True)
     hi = t.number("upper", required=True)
     for k, x in (("lower", lo), ("upper", hi)):
@@ -148,6 +204,10 @@ def _parse_variable(d, i: int, scene: Scene) -> Variable:
     if not lo < hi:
         t.fail("upper", f"must be > lower = {lo!r}, got {hi!r}")
     scale = t.number("scale", required=False, default=hi - lo, positive=True)
+    f = RANGES["scale"]
+    if t.has("scale") and not f.low <= scale / (hi - lo) <= f.high:
+        t.fail("scale", f"must lie in [{f.low:g}, {f.high:g}] x (upper - lower) = [{f.low * (hi - lo):g}, "
+               f"{f.high * (hi - lo):g}] ({f.why}), got {scale!r}")
     x0 = float(parameters.get_value(scene, path))
     if not math.isfinite(x0):
         t.fail("parameter", f"{path} is not given in the scene (it is solved for); "
@@ -176,7 +236,7 @@ def _parse_objective(d, i: int, scene: Scene) -> Objective:
     key = f"objective[{i}]"
     kind = _kind(d, key, OBJECTIVES)
     t = _READ.table(d, key, _OBJECTIVE_KEYS[kind])
-    weight = t.number("weight", required=False, default=1.0, nonnegative=True)
+    weight = _in(t, "weight", RANGES["weight"], t.number("weight", required=False, default=1.0, nonnegative=True))
     if kind == "hub_load":
         return Objective(kind, weight, pulley=_route_entry(t, "pulley", scene, True))
     if kind == "arm_motion":
@@ -186,20 +246,25 @@ def _parse_objective(d, i: int, scene: Scene) -> Objective:
             or any(isinstance(k, bool) or not isinstance(k, (int, float)) or not 0 < k < math.inf for k in orders)):
         got = (describe(orders) if not isinstance(orders, list) else repr(orders)) if orders is not None else "nothing"
         t.fail("orders", f"expected a non-empty array of positive finite numbers, got {got}")
+    for j, k in enumerate(orders):  # multiples of the drive pulley's speed, as a scene's fluctuation orders
+        _in(t, f"orders[{j}]", schema.FIELDS["fluctuation.order"], k)
     rpm = _band_rpm(t, d)
     modes = d.get("modes", "span")
     if isinstance(modes, bool) or not (modes in ("span", "all") or (isinstance(modes, int) and modes >= 1)):
         t.fail("modes", f"expected \"span\", \"all\" or a number of lowest modes >= 1, got {describe(modes)}")
     return Objective(
         kind, weight, orders=tuple(float(k) for k in orders), rpm=(float(rpm[0]), float(rpm[1])), modes=modes,
-        margin_hz=t.number("margin_hz", required=False, default=2.0, nonnegative=True),
-        tolerance_hz=t.number("tolerance_hz", required=False, default=0.05, nonnegative=True),
+        margin_hz=_in(t, "margin_hz", RANGES["margin_hz"],
+                      t.number("margin_hz", required=False, default=2.0, nonnegative=True)),
+        tolerance_hz=_in(t, "tolerance_hz", RANGES["tolerance_hz"],
+                         t.number("tolerance_hz", required=False, default=0.05, nonnegative=True)),
         speeds=t.integer("speeds", required=False, default=9, minimum=2, maximum=64),
     )
 
 
 def _band_rpm(t, d) -> list:
-    """The objective's rpm = [lower, upper] (drive-pulley speeds, rpm, 0 <= lower < upper)."""
+    """The objective's rpm = [lower, upper] (drive-pulley speeds, rpm, 0 <= lower < upper, each in
+    the range of ``drive.rpm``)."""
     rpm = d.get("rpm")
     if (not isinstance(rpm, list) or len(rpm) != 2
             or any(isinstance(r, bool) or not isinstance(r, (int, float)) or not math.isfinite(r) for r in rpm)):
@@ -207,6 +272,8 @@ def _band_rpm(t, d) -> list:
         t.fail("rpm", f"expected [lower, upper] speeds of the drive pulley (rpm), got {got}")
     if not 0 <= rpm[0] < rpm[1]:
         t.fail("rpm", f"need 0 <= lower < upper, got {rpm!r}")
+    for j, r in enumerate(rpm):
+        _in(t, f"rpm[{j}]", schema.FIELDS["drive.rpm"], r)
     return rpm
 
 
@@ -214,6 +281,7 @@ def _arm_motion(t, d, scene: Scene, weight: float) -> Objective:
     """An arm_motion objective: the tensioner arm's largest peak-to-peak (deg) in the periodic
     steady state over a speed band (the scene must have one: :func:`beltjax.orders.check`)."""
     from beltjax.orders import OrdersError, Settings, check, for_scene
+    from beltjax.orders.run import settle_problem
 
     rpm = _band_rpm(t, d)
     if rpm[0] <= 0:
@@ -224,25 +292,29 @@ def _arm_motion(t, d, scene: Scene, weight: float) -> Objective:
         check(scene, rpm)
     except OrdersError as exc:
         t.fail("kind", f"arm_motion needs a periodic steady state: {exc}")
+    settle_s = t.number("settle_s", required=False, default=1.0, nonnegative=True)
+    if settle_problem(settle_s):  # beltjax orders' --settle-s range
+        t.fail("settle_s", settle_problem(settle_s))
     return Objective("arm_motion", weight, rpm=(float(rpm[0]), float(rpm[1])),
                      speeds=t.integer("speeds", required=False, default=5, minimum=1, maximum=64),
-                     settle_s=t.number("settle_s", required=False, default=1.0, nonnegative=True),
-                     response=for_scene(scene, Settings(samples=64, max_order=4.0)))
+                     settle_s=settle_s, response=for_scene(scene, Settings(samples=64, max_order=4.0)))
 
 
 def _parse_constraint(d, i: int, scene: Scene) -> Constraint:
     key = f"constraint[{i}]"
     kind = _kind(d, key, CONSTRAINTS)
     t = _READ.table(d, key, _CONSTRAINT_KEYS[kind])
-    weight = t.number("weight", required=False, default=100.0, nonnegative=True)
-    tol = t.number("tolerance", required=False, default=_TOLERANCE[kind], nonnegative=True)
+    weight = _in(t, "weight", RANGES["weight"], t.number("weight", required=False, default=100.0, nonnegative=True))
+    tol = _in(t, "tolerance", _TOLERANCE_RANGE[kind],
+              t.number("tolerance", required=False, default=_TOLERANCE[kind], nonnegative=True))
     if kind == "min_wrap_deg":
         value = t.number("value", required=True)
         if not 0 < value < 360:
             t.fail("value", f"must lie in (0, 360) deg, got {value!r}")
         return Constraint(kind, value, None, weight, tol, _route_entry(t, "pulley", scene, False))
     if kind == "no_overlap":
-        return Constraint(kind, t.number("clearance", required=False, default=0.0, nonnegative=True), None, weight, tol)
+        clearance = t.number("clearance", required=False, default=0.0, nonnegative=True)
+        return Constraint(kind, _in(t, "clearance", RANGES["clearance"], clearance), None, weight, tol)
     if kind == "min_slip_margin":
         value = t.number("value", required=False, default=0.0)
         if not -1 < value < 1:
@@ -256,7 +328,7 @@ def _parse_constraint(d, i: int, scene: Scene) -> Constraint:
         return Constraint(kind, value, None, weight, tol, where)
     if kind == "arm_angle_deg" and scene.tensioner is None:
         t.fail("kind", "the scene has no tensioner")
-    lo, hi = t.number("min", required=False), t.number("max", required=False)
+    lo, hi = (_in(t, k, _WINDOW_RANGE[kind], t.number(k, required=False)) for k in ("min", "max"))
     if lo is None and hi is None:
         t.fail("min", "give min, max or both")
     if lo is not None and hi is not None and not lo < hi:
@@ -295,13 +367,16 @@ def parse(spec: dict, scene: Scene) -> Problem:
         variables=variables,
         objectives=objectives,
         constraints=constraints,
-        steps=t.integer("steps", required=False, default=150, minimum=1),
-        learning_rate=t.number("learning_rate", required=False, default=0.01, positive=True),
-        tolerance=t.number("tolerance", required=False, default=1e-4, nonnegative=True),
-        patience=t.integer("patience", required=False, default=30, minimum=1),
+        steps=_in(t, "steps", RANGES["steps"], t.integer("steps", required=False, default=150, minimum=1)),
+        learning_rate=_in(t, "learning_rate", RANGES["learning_rate"],
+                          t.number("learning_rate", required=False, default=0.01, positive=True)),
+        tolerance=_in(t, "tolerance", RANGES["tolerance"],
+                      t.number("tolerance", required=False, default=1e-4, nonnegative=True)),
+        patience=_in(t, "patience", RANGES["patience"], t.integer("patience", required=False, default=30, minimum=1)),
         elements_per_span=t.integer("elements_per_span", required=False, minimum=1, maximum=MAX_ELEMENTS_PER_SPAN),
         description=t.string("description", required=False, default=""),
-        min_steps=t.integer("min_steps", required=False, default=40, minimum=0),
+        min_steps=_in(t, "min_steps", RANGES["min_steps"],
+                      t.integer("min_steps", required=False, default=40, minimum=0)),
         starts=t.integer("starts", required=False, default=3, minimum=1, maximum=MAX_STARTS),
     )
 

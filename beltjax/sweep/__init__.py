@@ -57,6 +57,11 @@ Spread of a ``[[random]]`` table, exactly one of:
 * ``relative_tolerance``: the same band as a fraction of the centre
   (``0.003`` is +-0.3 %).
 
+A spread is > 0, and its band (centre +- tolerance, +- 3 std) must lie in the parameter's
+accepted range (:mod:`beltjax.schema`), as ``low`` and ``high`` must: a wider one is refused
+naming its key (std = 1e300 made every case invalid); a normal draw beyond the band that
+leaves the range is that case's ``invalid_value``.
+
 The centre is ``mean``, or with ``nominal = true`` the scene's value.  The belt's
 unstretched ``belt.length`` of a scene given by ``static_tension`` is the
 installed length (:func:`beltjax.statics.install`), and vice versa; sweeping

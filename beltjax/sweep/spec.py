@@ -235,7 +235,7 @@ def _parse_random(i: int, d: dict, default_seed: int) -> tuple[RandomAxis, int |
             raise SweepError("std belongs to a normal distribution (uniform: low/high or tolerance)", f"{key}.std")
         if mean is None and not nominal:
             raise SweepError("missing: give mean = value or nominal = true (the scene's value)", f"{key}.mean")
-        x = t.number(s, nonnegative=True)
+        x = t.number(s, positive=True)  # 0 would draw the centre in every case: a grid value
         if s == "relative_tolerance" and x >= 1.0:
             raise SweepError(f"must be < 1 (a fraction: 0.003 is 0.3 %), got {d[s]!r}", f"{key}.relative_tolerance")
         axis = RandomAxis(path, dist, mean, **{s: x}, key=key)
@@ -342,35 +342,69 @@ def _check_range(key: str, path: str, values) -> None:
     except parameters.ParameterError as exc:
         raise SweepError(f"{path} {str(exc)[len(path) + 2:]}", key) from None
 
+def _path_error(exc: BeltjaxError, path: str) -> str:
+    """The message of a :class:`beltjax.parameters.ParameterError` about ``path``, the path quoted
+    (repr) when it holds white space or a character that would not show: " belt.EA" read as belt.EA."""
+    msg = str(exc)
+    if path.isprintable() and not any(c.isspace() for c in path):
+        return msg
+    return f"{path!r}: {msg[len(path) + 1:].strip()}" if msg.startswith(f"{path}:") else msg
+
+def _half_band(a: RandomAxis, center: float) -> tuple[str, float]:
+    """(the spread's key, the half-width of its band about ``center``): tolerance; 3 std (the
+    band a tolerance gives a normal distribution); relative_tolerance x |centre|."""
+    if a.tolerance is not None:
+        return "tolerance", a.tolerance
+    if a.relative_tolerance is not None:
+        return "relative_tolerance", abs(center) * a.relative_tolerance
+    return "std", 3.0 * a.std
+
+def _check_band(scene: Scene, a: RandomAxis) -> None:
+    """A spread whose band, centre +- half (:func:`_half_band`), leaves the parameter's accepted
+    range (:mod:`beltjax.schema`), as low/high outside it would, or is not finite: one line naming
+    the spread's key.  Draws beyond the band (a normal's tails) are each a case's invalid_value."""
+    center = a.center if a.center is not None else nominal_value(scene, a.parameter)
+    k, half = _half_band(a, center)
+    with np.errstate(over="ignore"):
+        lo, hi = center - half, center + half
+    f = schema.field(a.parameter)
+    shown = {"tolerance": "tolerance", "std": "3 std", "relative_tolerance": "relative_tolerance x |centre|"}[k]
+    band = f"the band {center:g} +- {shown} = [{lo:g}, {hi:g}]"
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise SweepError(f"{band} is not finite", f"{a.key}.{k}")
+    if f is not None and (schema.problem(f, lo) or schema.problem(f, hi)):
+        raise SweepError(f"{band} leaves the accepted range of {a.parameter}, {f.range_text()} ({f.why}): give a "
+                         "smaller spread", f"{a.key}.{k}")
+
 def check_spec(scene: Scene, spec: Spec) -> None:
-    """Check a parsed sweep against ``scene``: parameter paths and value ranges (:class:`SweepError`)."""
+    """Check a parsed sweep against ``scene``: parameter paths, value ranges and the random
+    spreads' bands (:func:`_check_band`) (:class:`SweepError`)."""
     for a in [*spec.grid, *spec.random]:
         try:
             parameters.check(scene, a.parameter)
         except parameters.ParameterError as exc:
-            raise SweepError(str(exc), f"{a.key}.parameter") from None
+            raise SweepError(_path_error(exc, a.parameter), f"{a.key}.parameter") from None
     for a in spec.grid:
         _check_range(a.values_key, a.parameter, a.values)
     for a in spec.random:
         if a.low is not None:
             _check_range(f"{a.key}.low", a.parameter, [a.low, a.high])
-        elif a.center is not None:
+            continue
+        if a.center is not None:
             _check_range(f"{a.key}.mean", a.parameter, [a.center])
+        _check_band(scene, a)
 
 def _draw(axis: RandomAxis, center: float, n: int, index: int) -> np.ndarray:
     """``n`` draws of a random axis (file units) about ``center``."""
     rng = np.random.default_rng([axis.seed, index])
     if axis.low is not None:
         return rng.uniform(axis.low, axis.high, n)
-    if axis.tolerance is not None:
-        half = axis.tolerance
-    elif axis.relative_tolerance is not None:
-        half = abs(center) * axis.relative_tolerance
-    else:
-        half = 3.0 * axis.std
-    if axis.distribution == "uniform":
-        return center + rng.uniform(-half, half, n)
-    return center + (half / 3.0) * rng.standard_normal(n)
+    half = _half_band(axis, center)[1]
+    # (check_spec keeps the band finite; a draw that is not is its case's invalid_value, never a warning)
+    with np.errstate(all="ignore"):
+        if axis.distribution == "uniform":
+            return center + rng.uniform(-half, half, n)
+        return center + (half / 3.0) * rng.standard_normal(n)
 
 def cases(scene: Scene, spec: Spec) -> dict[str, np.ndarray]:
     """The case table: {parameter path: (n_cases,) values} (file units), grid axes full-factorial

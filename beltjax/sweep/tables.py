@@ -85,8 +85,11 @@ def statistics(x) -> dict[str, float | int | None]:
     x = x[np.isfinite(x)]
     if x.size == 0:
         return dict(count=0, mean=None, std=None, min=None, max=None, p5=None, p50=None, p95=None)
-    p = np.percentile(x, [5, 50, 95])
-    return dict(count=int(x.size), mean=float(x.mean()), std=float(x.std(ddof=1)) if x.size > 1 else 0.0,
+    # about the largest magnitude's power of 2 (exact): no square or sum overflows, and no warning
+    s = float(np.ldexp(1.0, int(np.frexp(np.max(np.abs(x)))[1]) - 1)) if np.any(x) else 1.0
+    y = x / s
+    p = np.percentile(y, [5, 50, 95]) * s
+    return dict(count=int(x.size), mean=float(y.mean()) * s, std=float(y.std(ddof=1)) * s if x.size > 1 else 0.0,
                 min=float(x.min()), max=float(x.max()), p5=float(p[0]), p50=float(p[1]), p95=float(p[2]))
 
 def failures(result: Mapping[str, np.ndarray], max_cases: int = 20) -> dict:
