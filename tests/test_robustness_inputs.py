@@ -342,7 +342,7 @@ CASES = [
          "an output folder name longer than the file system allows",
          lambda d: ["statics", T2, "--out", str(d / ("x" * 300))], "--out: cannot create directory",
          "too long"),
-    case("scene-pulley-name-line-break", "`name = \"alt\\nernator\"`", "a pulley name with a line break",
+    case("scene-pulley-name-line-break", "`statics`: `name = \"alt\\nernator\"`", "a pulley name with a line break",
          lambda d: ["statics", scene(d, ('name = "alternator"', 'name = "alt\\nernator"'),
                                      ('"alternator"]', '"alt\\nernator"]'))],
          "pulley[1].name", "printable"),
