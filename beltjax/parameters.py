@@ -70,6 +70,14 @@ class ParameterError(BeltjaxError):
         """The parameter path the message is about (the ``key``)."""
         return self.key
 
+    def quoted(self, path: str) -> str:
+        """The message about ``path``, the path quoted (repr) when it holds white space or a
+        character that would not show (" belt.EA" would read as belt.EA)."""
+        msg = str(self)
+        if path.isprintable() and not any(c.isspace() for c in path):
+            return msg
+        return f"{path!r}: {msg[len(path) + 1:].strip()}" if msg.startswith(f"{path}:") else msg
+
 
 def _motion_rule(scene: Scene, name: str, key: str) -> str | None:
     """Why pulley ``name`` cannot take the prescribed-motion ``key``, or None."""

@@ -93,15 +93,6 @@ def _in(t: tomltable.Table, k: str, f: Field, v):
     return v
 
 
-def _path_error(exc: BeltjaxError, path: str) -> str:
-    """The message of a :class:`beltjax.parameters.ParameterError` about ``path``, the path quoted
-    (repr) when it holds white space or a character that would not show: " belt.EA" read as belt.EA."""
-    msg = str(exc)
-    if path.isprintable() and not any(c.isspace() for c in path):
-        return msg
-    return f"{path!r}: {msg[len(path) + 1:].strip()}" if msg.startswith(f"{path}:") else msg
-
-
 # --------------------------------------------------------------------------- the problem
 
 
@@ -193,7 +184,7 @@ def _parse_variable(d, i: int, scene: Scene) -> Variable:
     try:
         parameters.check(scene, path)
     except parameters.ParameterError as exc:
-        raise OptimizeError(_path_error(exc, path), f"{key}.parameter") from None
+        raise OptimizeError(exc.quoted(path), f"{key}.parameter") from None
     lo = t.number("lower", required=True)
     hi = t.number("upper", required=True)
     for k, x in (("lower", lo), ("upper", hi)):

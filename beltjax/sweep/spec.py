@@ -342,14 +342,6 @@ def _check_range(key: str, path: str, values) -> None:
     except parameters.ParameterError as exc:
         raise SweepError(f"{path} {str(exc)[len(path) + 2:]}", key) from None
 
-def _path_error(exc: BeltjaxError, path: str) -> str:
-    """The message of a :class:`beltjax.parameters.ParameterError` about ``path``, the path quoted
-    (repr) when it holds white space or a character that would not show: " belt.EA" read as belt.EA."""
-    msg = str(exc)
-    if path.isprintable() and not any(c.isspace() for c in path):
-        return msg
-    return f"{path!r}: {msg[len(path) + 1:].strip()}" if msg.startswith(f"{path}:") else msg
-
 def _half_band(a: RandomAxis, center: float) -> tuple[str, float]:
     """(the spread's key, the half-width of its band about ``center``): tolerance; 3 std (the
     band a tolerance gives a normal distribution); relative_tolerance x |centre|."""
@@ -383,7 +375,7 @@ def check_spec(scene: Scene, spec: Spec) -> None:
         try:
             parameters.check(scene, a.parameter)
         except parameters.ParameterError as exc:
-            raise SweepError(_path_error(exc, a.parameter), f"{a.key}.parameter") from None
+            raise SweepError(exc.quoted(a.parameter), f"{a.key}.parameter") from None
     for a in spec.grid:
         _check_range(a.values_key, a.parameter, a.values)
     for a in spec.random:
