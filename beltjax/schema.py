@@ -163,8 +163,11 @@ FIELDS: dict[str, Field] = {
     "span_load.t_end_s": _TIME,
     "simulation.dt_s": Field("s", 1e-9, 10.0, "from 1 ns to 10 s", ">0"),
     "simulation.rho_inf": Field("", 0.0, 1.0, "generalized-alpha's spectral radius at infinite frequency"),
-    "simulation.rtol": Field("", 1e-14, 1.0, "float64 resolves no finer", ">0"),
-    "simulation.atol": Field("", 1e-20, 1e3, "in SI units of the state", ">0"),
+    "simulation.rtol": Field("", 1e-14, 1e-2, "float64 resolves no finer; looser, the step's error control "
+                                              "no longer follows the response (at rtol = 1 a damped drive "
+                                              "gained energy)", ">0"),
+    "simulation.atol": Field("", 1e-20, 1e-2, "in SI units of the state (m, rad, m/s, rad/s); looser, the "
+                                              "error control lets the response go", ">0"),
     "simulation.output_dt_s": Field("s", 1e-9, 1e4, "from 1 ns to 3 hours", ">0"),
     "initial.rotation_deg": _ANGLE,
     "initial.arm_angle_deg": _ANGLE,

@@ -50,14 +50,17 @@ def slack_spans(t, tensions, names) -> list[dict]:
     return span_episodes(t, tensions, names, "min_tension_N")
 
 
-def supercritical_spans(t, forces, names, belt_speed) -> list[dict]:
+def supercritical_spans(t, forces, names, belt_speed, tensions=None) -> list[dict]:
     """Spans whose force on the pulleys (tension less rhoA c^2 lam, N: :mod:`beltjax.critical`)
-    fell to zero or below at an output sample of t (s): past the critical belt speed.
+    fell to zero or below at an output sample of t (s) while their tension (N, (nt, n), when
+    given) stayed positive: past the critical belt speed (a slack span is :func:`slack_spans`'s).
 
     Both fidelities then describe a belt that would lift off its pulleys (and the hybrid
     model's span has lost its transverse stiffness): not physical.  Records as
     :func:`slack_spans` with min_force_N and belt_speed_m_s (m/s) at the first such sample.
     """
+    if tensions is not None:
+        forces = np.where(np.asarray(tensions) > 0.0, forces, np.inf)
     return span_episodes(t, forces, names, "min_force_N", {"belt_speed_m_s": belt_speed})
 
 
@@ -82,10 +85,15 @@ def slipping_pulleys(t, margins, names) -> list[dict]:
 
 
 def slip_warning(record: dict) -> str:
-    """One line saying that (and when) a pulley's arc reached its capstan limit."""
-    return (f"warning: the belt would slip on {record['pulley']!r} ({record['samples']} output samples between "
-            f"t = {record['t_first_s']:.4g} and {record['t_last_s']:.4g} s, slip margin down to "
-            f"{record['min_slip_margin']:.3g}): the capstan limit is exceeded, and this model's belt does not slip")
+    """One line saying that (and when) a pulley's arc reached its capstan limit; the record's
+    ``slides`` says whether the run's belt slides there (effect ``belt_slip``) or grips."""
+    when = (f"({record['samples']} output samples between t = {record['t_first_s']:.4g} and "
+            f"{record['t_last_s']:.4g} s, slip margin down to {record['min_slip_margin']:.3g})")
+    if record.get("slides"):
+        return (f"warning: the belt slid on {record['pulley']!r} {when}: the capstan limit was exceeded and the arc "
+                "slid (belt_slip; see slip_speeds_m_s and friction_power_W)")
+    return (f"warning: the belt would slip on {record['pulley']!r} {when}: the capstan limit is exceeded, and this "
+            "model's belt does not slip (list belt_slip for its sliding)")
 
 
 #: the hybrid model's end nodes sit off their tangent points by the belt's axial perturbation

@@ -187,4 +187,5 @@ def friction_channels(scene: Scene, wraps, pulley_forces, t, chans: dict, cols: 
     if not given:
         return []
     chans["slip_margins"], cols["slip_margins"] = margins, [order[i] for i in given]
-    return slipping_pulleys(t, margins, cols["slip_margins"])
+    slides = belt_slip.n_states(scene) > 0  # the run's belt slides where the limit is exceeded
+    return [dict(r, slides=slides) for r in slipping_pulleys(t, margins, cols["slip_margins"])]

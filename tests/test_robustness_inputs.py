@@ -232,11 +232,11 @@ CASES = [
          lambda d: ["statics", bench(d, ("arm_angle_deg = 46.5", "arm_angle_deg = 46.5\nfriction_moment = -1.0"),
                                      ('effects = ["transport"]', 'effects = ["transport", "tensioner_friction"]'))],
          "tensioner.friction_moment", ">= 0"),
-    case("scene-tensioner-stops-miss-arm", "`statics`: `stop_min_deg = 50.0`, `stop_max_deg = 60.0`",
-         "end stops that do not contain the arm's angle (46.5 deg)",
-         lambda d: ["statics", bench(d, ("arm_angle_deg = 46.5", "arm_angle_deg = 46.5\nstop_min_deg = 50.0\n"
-                                                                 "stop_max_deg = 60.0"))],
-         "tensioner.stop_min_deg", "do not contain"),
+    case("scene-tensioner-stops-reversed", "`statics`: `stop_min_deg = 60.0`, `stop_max_deg = 50.0`",
+         "end stops in the wrong order",
+         lambda d: ["statics", bench(d, ("arm_angle_deg = 46.5", "arm_angle_deg = 46.5\nstop_min_deg = 60.0\n"
+                                                                 "stop_max_deg = 50.0"))],
+         "tensioner.stop_max_deg", "must be above stop_min_deg"),
     case("scene-fluctuation-on-free-pulley", "`statics`: `[[fluctuation]] pulley = \"ac\"` (8-pulley drive)",
          "a crank order on an accessory (only the driven drive pulley's motion fluctuates)",
          lambda d: ["statics", write(d, "scene.toml", FEAD + '\n[[fluctuation]]\npulley = "ac"\norder = 2.0\n'
@@ -376,6 +376,10 @@ CASES = [
          lambda d: ["simulate", T2, "--t-end", "0.01", "--dt", "0.1"], "dt: must be > 0 and below t_end"),
     case("simulate-too-many-samples", "`simulate --t-end 1e6`", "output would not fit in memory",
          lambda d: ["simulate", T2, "--t-end", "1e6"], "output samples, at most"),
+    case("simulate-rtol-one", "`simulate`: `[simulation] rtol = 1.0`",
+         "a tolerance that lets the response go (a damped drive gained energy at rtol = 1)",
+         lambda d: ["simulate", write(d, "scene.toml", T200 + "\n[simulation]\nrtol = 1.0\n"), "--t-end", "0.1"],
+         "simulation.rtol", "must lie in [1e-14, 0.01]"),
     case("simulate-unknown-solver", "`simulate`: `[simulation] solver = \"euler\"`", "unknown solver",
          lambda d: ["simulate", write(d, "scene.toml", T200 + '\n[simulation]\nsolver = "euler"\n'), "--t-end", "0.1"],
          "simulation.solver: must be one of"),

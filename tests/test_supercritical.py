@@ -251,3 +251,22 @@ def test_span_flags_share_one_mechanism():
     assert [(r["span"], r["t_first_s"], r["samples"]) for r in slack] == [("a-b", 0.5, 6)]
     lines = transient.run_warnings(dict(slack_spans=slack, supercritical_spans=rec))
     assert len(lines) == 2 and "went slack" in lines[0] and "passed the critical speed" in lines[1]
+
+
+def test_a_slack_span_is_not_also_past_the_critical_speed():
+    """A span whose tension is <= 0 is slack (its force on the pulleys is then <= 0 too, at any
+    speed): it is flagged once, as slack, not also as past the critical speed from belt speed 0."""
+    t = np.linspace(0, 1, 11)
+    T = np.stack([np.linspace(5, -5, 11), np.full(11, 3.0)], axis=1)
+    F = T - np.stack([np.zeros(11), np.linspace(0, 6, 11)], axis=1)  # the second: past critical late on
+    rec = transient.supercritical_spans(t, F, ["a-b", "b-a"], np.zeros(11), T)
+    assert [(r["span"], r["t_first_s"], r["samples"]) for r in rec] == [("b-a", 0.5, 6)]
+    assert [r["span"] for r in transient.slack_spans(t, T, ["a-b", "b-a"])] == ["a-b"]
+
+
+def test_the_slip_warning_says_whether_the_belt_slid():
+    from beltjax.span_flags import slip_warning
+
+    rec = dict(pulley="crank", samples=3, t_first_s=0.1, t_last_s=0.2, min_slip_margin=-0.5)
+    assert "does not slip" in slip_warning(rec) and "list belt_slip" in slip_warning(rec)
+    assert "slid on 'crank'" in slip_warning(dict(rec, slides=True))

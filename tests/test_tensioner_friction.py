@@ -162,7 +162,7 @@ def _fead(extra_tensioner: str = "", effect: bool = True) -> str:
 
 @pytest.mark.parametrize("extra, key", [
     ("friction_moment = -1.0", "tensioner.friction_moment"),
-    ("stop_min_deg = 85.0\nstop_max_deg = 90.0", "tensioner.stop_min_deg"),
+    ("stop_min_deg = 85.0\nstop_stiffness = 0.0", "tensioner.stop_stiffness"),
     ("stop_min_deg = 60.0\nstop_max_deg = 50.0", "tensioner.stop_max_deg"),
     ("friction_speed = 0.0", "tensioner.friction_speed"),
     ("friction_stick_time = -1e-4", "tensioner.friction_stick_time"),
@@ -189,8 +189,19 @@ def test_stops_enter_the_installation():
     assert math.degrees(float(stopped.arm_angle)) == pytest.approx(a - 5.0, abs=0.5)
 
 
+def test_stops_are_checked_against_the_settled_arm_not_the_first_guess():
+    """arm_angle_deg is the statics' first guess: stops 0.3 deg either side of the arm's settled
+    angle, far from the guess (80 deg), are accepted, and the arm settles between them."""
+    free = statics.install(loads_scene(_fead(effect=False)))
+    a = math.degrees(float(free.arm_angle))
+    assert abs(a - 80.0) > 5.0
+    inst = statics.install(loads_scene(_fead(f"stop_min_deg = {a - 0.3}\nstop_max_deg = {a + 0.3}", effect=False)))
+    assert math.degrees(float(inst.arm_angle)) == pytest.approx(a, abs=1e-6)
+
+
 def test_a_stop_that_holds_the_installed_arm_is_refused():
-    """Stops must contain the installed arm: one that the arm settles on is an error naming it."""
+    """Stops must contain the installed arm: one that the arm settles on is an error naming it
+    (checked on the settled arm, not on arm_angle_deg, the statics' first guess)."""
     from beltjax.static_state import analyse_statics
 
     free = statics.install(loads_scene(_fead(effect=False)))
