@@ -191,7 +191,7 @@ def _title(scene, path) -> str:
 
 def cmd_statics(args) -> int:
     """Static state of a drive: statics.json, layout.png and a table."""
-    from beltjax import friction, statics
+    from beltjax import statics
     from beltjax.plotting import plot_layout
 
     scene = _load(args.scene)
@@ -204,8 +204,7 @@ def cmd_statics(args) -> int:
     plot_layout(scene, res, out / "layout.png")
     print(f"statics of {_title(scene, args.scene)}")
     print(statics_table(res))
-    warning = friction.slip_warning(res.friction, res.state)
-    if warning:
+    for warning in res.warnings:  # arcs that would slip, the arm on a stop
         print(f"beltjax: warning: {warning}", file=sys.stderr)
     return 0
 

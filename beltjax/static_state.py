@@ -61,6 +61,16 @@ class StaticResult:
     unloaded: dict | None = None
     friction: dict = field(default_factory=dict)
     decouplers: dict = field(default_factory=dict)
+    arm_on_stop: str | None = None
+
+    @property
+    def warnings(self) -> list[str]:
+        """One line per thing the state's reader must know: arcs that would slip
+        (:func:`beltjax.friction.slip_warning`), the arm pressed into an end stop."""
+        from beltjax import friction
+
+        lines = [friction.slip_warning(self.friction, self.state)]
+        return [x for x in lines + [self.arm_on_stop] if x]
 
     @property
     def slipping(self) -> list[str]:
@@ -96,6 +106,8 @@ class StaticResult:
             d["tensioner_pivot_force_N"] = self.tensioner_pivot_force_N
         if self.decouplers:
             d["decouplers"] = self.decouplers
+        if self.arm_on_stop:
+            d["arm_on_stop"] = self.arm_on_stop
         if self.unloaded is not None:
             d["unloaded"] = self.unloaded
         return d
@@ -215,6 +227,14 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
             t = scene.tensioner
             pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
         res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
+        res.arm_on_stop = _arm_on_stop(scene.tensioner, res.tensioner_angle_deg, what)
+    if scene.isolator is not None:  # the isolator's spring carries the drive torque
+        lag = abs(res.drive_torque_Nm / float(scene.isolator.stiffness))
+        if lag > math.pi:
+            raise StaticsError(f"the isolator's spring winds up by {math.degrees(lag):.4g} deg to carry the drive "
+                               f"torque {res.drive_torque_Nm:.4g} N m at the {what}: beyond half a turn, no "
+                               f"isolator's travel; give a stiffness of at least {abs(res.drive_torque_Nm) / math.pi:.3g} "
+                               "N m/rad", "isolator.stiffness")
     if scene.decouplers:  # each decoupler's wind-up (the pulley's lead over its rotor) and moment
         w_all = couplings.static_windups(jnp.asarray(res.qi), scene, inst)
         for j, d in enumerate(scene.decouplers):
@@ -227,3 +247,15 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
             res.decouplers[d.pulley] = {"windup_deg": math.degrees(w),
                                         "moment_Nm": float(couplings.decoupler_moment(w, d.stiffness))}
     return res
+
+
+def _arm_on_stop(t, angle_deg: float, state: str) -> str | None:
+    """The line saying that the tensioner arm (at ``angle_deg``, deg) is pressed into one of its end
+    stops in this ``state``, or None: there the stop, not the spring, sets the belt's tension."""
+    for key, stop, beyond in (("stop_min_deg", t.stop_min_deg, lambda s: angle_deg < s),
+                              ("stop_max_deg", t.stop_max_deg, lambda s: angle_deg > s)):
+        if stop is not None and beyond(float(stop)):
+            return (f"the tensioner arm rests on its end stop at the {state} ({angle_deg:.5g} deg, "
+                    f"{abs(angle_deg - float(stop)):.3g} deg into tensioner.{key} = {float(stop):.5g} deg): the "
+                    "stop, not the spring, sets the belt's tension there")
+    return None

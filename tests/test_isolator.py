@@ -98,3 +98,18 @@ def test_isolator_parameters_are_paths():
     sc = loads_scene(_scene(ISOLATOR))
     assert {"isolator.stiffness", "isolator.damping"} <= set(parameters.paths(sc))
     assert float(parameters.set_values(sc, {"isolator.stiffness": 500.0}).isolator.stiffness) == 500.0
+
+
+def test_an_isolator_too_soft_for_its_drive_torque_is_refused():
+    """A spring that would wind up by more than half a turn to carry the drive torque is no
+    isolator: the operating point is refused naming isolator.stiffness (a fuzzing pass found
+    1e-6 N m/rad wound up by 1e9 deg, with no flag); one that carries it within a few degrees is
+    the operating point."""
+    from beltjax import statics
+
+    load = '\n[[torque]]\npulley = "alternator"\nmean_Nm = 5.0\n'
+    with pytest.raises(BeltjaxError, match="winds up by") as e:
+        statics.analyse_statics(loads_scene(_scene(load + '\n[isolator]\npulley = "crank"\nstiffness = 1.0\n')))
+    assert e.value.key == "isolator.stiffness" and "at least" in str(e.value)
+    r = statics.analyse_statics(loads_scene(_scene(load + ISOLATOR)))
+    assert abs(r.drive_torque_Nm) > 10.0

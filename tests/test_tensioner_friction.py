@@ -199,6 +199,21 @@ def test_stops_are_checked_against_the_settled_arm_not_the_first_guess():
     assert math.degrees(float(inst.arm_angle)) == pytest.approx(a, abs=1e-6)
 
 
+def test_an_operating_point_pressed_into_a_stop_is_reported():
+    """Stops that hold the installed arm between them but not the loaded one: the operating point
+    reports the arm resting on its stop (a warning line and statics.json's arm_on_stop)."""
+    from beltjax.static_state import analyse_statics
+
+    plain = analyse_statics(loads_scene(_fead(effect=False)))
+    a_op, a_in = plain.tensioner_angle_deg, plain.unloaded["tensioner_angle_deg"]
+    assert abs(a_op - a_in) > 0.5 and plain.arm_on_stop is None
+    lo, hi = (0.5 * (a_op + a_in), a_in + 5.0) if a_op < a_in else (a_in - 5.0, 0.5 * (a_op + a_in))
+    r = analyse_statics(loads_scene(_fead(f"stop_min_deg = {lo}\nstop_max_deg = {hi}", effect=False)))
+    key = "stop_min_deg" if a_op < a_in else "stop_max_deg"
+    assert r.arm_on_stop and f"tensioner.{key}" in r.arm_on_stop and r.to_json()["arm_on_stop"] == r.arm_on_stop
+    assert r.arm_on_stop in r.warnings
+
+
 def test_a_stop_that_holds_the_installed_arm_is_refused():
     """Stops must contain the installed arm: one that the arm settles on is an error naming it
     (checked on the settled arm, not on arm_angle_deg, the statics' first guess)."""
