@@ -96,6 +96,30 @@ def slip_warning(record: dict) -> str:
             "model's belt does not slip (list belt_slip for its sliding)")
 
 
+#: a span whose strain (tension / EA) passes this during a run is flagged: belts run at well below
+#: 1 %, and the model's linear-elastic section has no footing far beyond
+MAX_RUN_STRAIN = 0.05
+
+
+def overstretched_spans(t, tensions, EA: float, names) -> list[dict]:
+    """Spans whose strain T / EA (tensions (nt, n) N, EA N) passed :data:`MAX_RUN_STRAIN` at an
+    output sample of t (s).  Records as :func:`slack_spans` with max_strain (-)."""
+    strain = np.asarray(tensions) / EA
+    out = span_episodes(t, MAX_RUN_STRAIN - strain, names, "_margin")
+    for r in out:
+        del r["_margin"]
+        r["max_strain"] = float(np.max(strain[:, list(names).index(r["span"])]))
+    return out
+
+
+def overstretch_warning(record: dict) -> str:
+    """One line saying that (and when) a span stretched beyond :data:`MAX_RUN_STRAIN`."""
+    return (f"warning: span {record['span']!r} stretched by up to {100 * record['max_strain']:.3g} % "
+            f"({record['samples']} output samples between t = {record['t_first_s']:.4g} and {record['t_last_s']:.4g} "
+            f"s), beyond the {100 * MAX_RUN_STRAIN:g} % the model's linear-elastic belt is meant for: its results "
+            "there are not physical")
+
+
 #: the hybrid model's end nodes sit off their tangent points by the belt's axial perturbation
 #: displacement there; beyond this fraction of a span's length the run flags the span
 END_SLIDE_FRACTION = 0.05
@@ -133,10 +157,11 @@ def end_slide_warning(record: dict) -> str:
 
 def run_warnings(meta: dict) -> list[str]:
     """The one-line warnings of a run, from its meta: slack spans, spans past the critical
-    speed (:func:`slack_warning`), arcs past their capstan limit (:func:`slip_warning`), hybrid
+    speed (:func:`slack_warning`), spans stretched too far (:func:`overstretch_warning`), arcs past their capstan limit (:func:`slip_warning`), hybrid
     spans whose ends slid far (:func:`end_slide_warning`) and forcing the step resolves poorly
     (:func:`beltjax.excitation.warning`)."""
     lines = [slack_warning(r) for k in ("slack_spans", "supercritical_spans") for r in meta.get(k, [])]
+    lines += [overstretch_warning(r) for r in meta.get("overstretched_spans", [])]
     lines += [slip_warning(r) for r in meta.get("slipping_pulleys", [])]
     lines += [end_slide_warning(r) for r in meta.get("displaced_span_ends", [])]
     return lines + [excitation.warning(r) for r in meta.get("excitation_warnings", [])]

@@ -46,7 +46,7 @@ import numpy as np
 
 from beltjax import drive, excitation, runtime, signals, statics
 from beltjax.drive import belt_slip, couplings
-from beltjax.span_flags import check_initial_strain, displaced_span_ends, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
+from beltjax.span_flags import check_initial_strain, displaced_span_ends, overstretched_spans, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
 from beltjax.integrators import GeneralizedAlpha
 from beltjax.scene import Initial, Scene
@@ -336,7 +336,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     ``failure``), and StaticsError when the drive has no equilibrium to start from.  Spans that
     go slack or pass the critical speed (:mod:`beltjax.critical`), arcs past their capstan limit
     and hybrid span ends that slid far (:func:`displaced_span_ends`) are recorded in ``meta``
-    (slack_spans, supercritical_spans, slipping_pulleys, displaced_span_ends), as are
+    (slack_spans, supercritical_spans, overstretched_spans, slipping_pulleys, displaced_span_ends), as are
     excitation_warnings; :func:`run_warnings` words them.
     """
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
@@ -488,9 +488,9 @@ def _result(scene: Scene, inst, t, ys, forcing, fixed: bool, run: dict) -> Simul
         installation_tension_N=float(inst.tension),
         slack_spans=slack_spans(t, T := chans["span_tensions_N"], cols["span_tensions_N"]),
         supercritical_spans=supercritical_spans(t, pulley_forces, cols["span_forces_N"], chans["belt_speed_m_s"], T),
+        overstretched_spans=overstretched_spans(t, T, float(scene.belt.EA), cols["span_tensions_N"]),
         slipping_pulleys=slipping,
-        displaced_span_ends=[] if slides is None else displaced_span_ends(t, slides, np.asarray(inst.span_length),
-                                                                          cols["span_tensions_N"]),
+        displaced_span_ends=[] if slides is None else displaced_span_ends(t, slides, np.asarray(inst.span_length), cols["span_tensions_N"]),
         excitation_warnings=[*forcing.warnings,
                              *excitation.after_run(scene, chans["pulley_speeds_rpm"], dt, out_dt, fixed)],
     )

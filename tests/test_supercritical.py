@@ -270,3 +270,19 @@ def test_the_slip_warning_says_whether_the_belt_slid():
     rec = dict(pulley="crank", samples=3, t_first_s=0.1, t_last_s=0.2, min_slip_margin=-0.5)
     assert "does not slip" in slip_warning(rec) and "list belt_slip" in slip_warning(rec)
     assert "slid on 'crank'" in slip_warning(dict(rec, slides=True))
+
+
+def test_a_span_stretched_beyond_the_belt_law_is_flagged():
+    """A span whose strain T / EA passes MAX_RUN_STRAIN during a run is flagged with its largest
+    strain and worded by run_warnings (a fuzzed run-up reached a strain of 1700, flagged only as
+    slack on the other span)."""
+    from beltjax.span_flags import MAX_RUN_STRAIN, overstretched_spans
+
+    t = np.linspace(0, 1, 11)
+    EA = 1e5
+    T = np.stack([np.linspace(0, 2 * MAX_RUN_STRAIN * EA, 11), np.full(11, 500.0)], axis=1)
+    rec = overstretched_spans(t, T, EA, ["a-b", "b-a"])
+    assert [(r["span"], r["t_first_s"], r["samples"]) for r in rec] == [("a-b", 0.5, 6)]
+    assert rec[0]["max_strain"] == pytest.approx(2 * MAX_RUN_STRAIN)
+    (line,) = transient.run_warnings(dict(overstretched_spans=rec))
+    assert "stretched by up to 10 %" in line
