@@ -437,18 +437,18 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
             reporter.update(f"  simulate {bar(done / t_end)} t = {done:7.3f} / {t_end:g} s  ({el:6.1f} s)")
     if progress:
         reporter.finish()
-    wall = time.perf_counter() - wall0
     t = np.concatenate(ts_all)
     ys = np.concatenate(ys_all)
-    keep = t <= t_end + 1e-12
-    t, ys = t[keep], ys[keep]
-    run = dict(dt_s=dt, output_dt_s=out_dt, steps=steps, wall_s=wall, setup_s=setup_s, first_chunk_s=compile_s)
+    t, ys = t[t <= t_end + 1e-12], ys[t <= t_end + 1e-12]  # (both masks of the t before the assignment)
+    run = dict(dt_s=dt, output_dt_s=out_dt, steps=steps, wall_s=time.perf_counter() - wall0, setup_s=setup_s,
+               first_chunk_s=compile_s)
     if failure is not None:  # the outputs up to the failure go with the error (``exc.partial``)
-        exc = TransientError(f"{failure} (outputs up to t = {t[-1]:.4g} s kept)")
         try:
-            exc.partial = _result(scene, inst, t, ys, forcing, fixed, dict(run, failure=failure))
-        except TransientError:
-            exc.partial = None
+            partial = _result(scene, inst, t, ys, forcing, fixed, dict(run, failure=failure)) if len(t) else None
+        except TransientError:  # (outputs that are not finite: none kept, and the message says so)
+            partial = None
+        exc = TransientError(f"{failure} ({f'outputs up to t = {t[-1]:.4g} s kept' if partial else 'no outputs kept'})")
+        exc.partial = partial
         raise exc
     return _result(scene, inst, t, ys, forcing, fixed, run)
 
