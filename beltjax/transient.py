@@ -341,9 +341,9 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     """
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise TransientError(f"t_end: must be a finite time > 0 s, got {t_end!r}")
+    scene = drive.canonical(scene)
     if refused := belt_slip.transient_check(scene):
         raise TransientError(f"{refused[0]}: {refused[1]}", refused[0])
-    scene = drive.canonical(scene)
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, solver=default_solver(scene)))
     dt = default_dt(scene) if dt is None else float(dt)
     if not (math.isfinite(dt) and 0 < dt < t_end):

@@ -30,7 +30,7 @@ import numpy as np
 from beltjax import schema
 from beltjax.errors import BeltjaxError
 from beltjax.geometry import MIN_WRAP
-from beltjax.scene import TENSIONER, Scene, SceneError
+from beltjax.scene import TENSIONER, Scene, SceneError, require_scene
 from beltjax.scene.spec import drive_pulley_index
 
 #: the statuses this module gives, in order of precedence ("ok" when none)
@@ -337,7 +337,7 @@ def scene_problem(scene: Scene) -> tuple[str, str] | None:
 def check_scene(scene: Scene) -> Scene:
     """``scene`` if it passes every check, else :class:`beltjax.scene.SceneError` (one line
     starting with the scene-file key, as the scene file's parser gives it)."""
-    p = scene_problem(scene)
+    p = scene_problem(require_scene(scene))
     if p is not None:
         raise SceneError(p[1], p[0], source=scene.source)
     return scene

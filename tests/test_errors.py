@@ -57,3 +57,17 @@ def test_control_characters_are_escaped_on_the_error_line(tmp_path, capsys):
     assert main(["statics", str(tmp_path / "scene.toml"), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and all(c.isprintable() for c in err), repr(err)
+
+
+@pytest.mark.parametrize("not_a_scene", ["scenes/two_pulley_T400.toml", {"belt": {}}, None])
+def test_an_analysis_given_what_is_not_a_scene_raises_one_line(not_a_scene):
+    """The Python API's analyses given a file name, a dict or None raise the one-line error
+    naming ``scene`` (an AttributeError deep inside before)."""
+    import beltjax
+    from beltjax import transient
+
+    for f in (beltjax.analyse_statics, beltjax.analyse_modes, lambda s: transient.simulate(s, 0.1),
+              lambda s: beltjax.analyse_campbell(s, [0.0, 100.0])):
+        with pytest.raises(beltjax.BeltjaxError, match="expected a beltjax Scene") as e:
+            f(not_a_scene)
+        assert e.value.key == "scene" and "\n" not in str(e.value)

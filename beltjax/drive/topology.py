@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax.ancf import Section
-from beltjax.scene import Scene
+from beltjax.scene import Scene, require_scene
 from beltjax.drive.assembly import Drive, drive_of  # noqa: F401
 from beltjax.drive.effects import GRAVITY  # noqa: F401  (m/s^2)
 
@@ -45,8 +45,8 @@ class Installation(NamedTuple):
 
 def canonical(scene: Scene) -> Scene:
     """The scene without its file label and description, so that scenes differing only in
-    numbers share one compiled function."""
-    return dataclasses.replace(scene, source="", description="")
+    numbers share one compiled function (a SceneError for what is not a scene)."""
+    return dataclasses.replace(require_scene(scene), source="", description="")
 
 
 def statics_scene(scene: Scene, at_t: float | None = None) -> Scene:

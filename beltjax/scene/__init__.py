@@ -68,7 +68,7 @@ stiffnesses...), names and switches are static fields.
 
 """
 
-from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initial, MAX_ELEMENTS_PER_SPAN, Model, Pulley, Route, SOLVERS, Scene, SceneError, Simulation, SpanLoad, TENSIONER, Tensioner, Torque  # noqa: F401
+from beltjax.scene.spec import ARM, Belt, DIRECTIONS, EFFECTS, FIDELITIES, Initial, MAX_ELEMENTS_PER_SPAN, Model, Pulley, Route, SOLVERS, Scene, SceneError, Simulation, SpanLoad, TENSIONER, Tensioner, Torque, require_scene  # noqa: F401
 from beltjax.scene.sections import _BELT_KEYS, _DRIVEN_ONLY, _INITIAL_KEYS, _MODEL_KEYS, _PULLEY_KEYS, _ROUTE_KEYS, _SIMULATION_KEYS, _SPAN_LOAD_KEYS, _TENSIONER_KEYS, _TOP_KEYS, _TORQUE_KEYS, _arr, _check_effects, _fail, _num, _parse_belt, _parse_initial, _parse_model, _parse_pulley, _parse_route, _parse_simulation, _parse_span_loads, _parse_tensioner, _parse_torques, _table, _vec, _window  # noqa: F401
 from beltjax.scene.read import _check_geometry, _key_for, load_scene, loads_scene, parse_scene  # noqa: F401
 from beltjax.scene.write import dumps_scene, scene_document, write_scene  # noqa: F401

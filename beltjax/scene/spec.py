@@ -344,6 +344,15 @@ class Scene(eqx.Module):
         return geometry.drive_geometry(centers, radii, self.route.senses, names=self.route.order, check=check)
 
 
+def require_scene(scene) -> Scene:
+    """``scene`` if it is a :class:`Scene`, else a one-line :class:`SceneError` naming ``scene``
+    (an analysis given a file name, a dict or None)."""
+    if not isinstance(scene, Scene):
+        raise SceneError(f"scene: expected a beltjax Scene (read a scene file with beltjax.scene.load_scene), got "
+                         f"{type(scene).__name__}", "scene")
+    return scene
+
+
 def drive_pulley_index(pulleys, names=None) -> int:
     """Index in ``pulleys`` (a sequence of :class:`Pulley`) of the drive pulley, whose speed sets
     the belt's: the first driven one in file order, else the first; only the pulleys named in
