@@ -104,11 +104,16 @@ MAX_RUN_STRAIN = 0.05
 def overstretched_spans(t, tensions, EA: float, names) -> list[dict]:
     """Spans whose strain T / EA (tensions (nt, n) N, EA N) passed :data:`MAX_RUN_STRAIN` at an
     output sample of t (s).  Records as :func:`slack_spans` with max_strain (-)."""
-    strain = np.asarray(tensions) / EA
-    out = span_episodes(t, MAX_RUN_STRAIN - strain, names, "_margin")
+    return _beyond(t, np.asarray(tensions) / EA, MAX_RUN_STRAIN, names, "max_strain")
+
+
+def _beyond(t, values, limit: float, names, key: str) -> list[dict]:
+    """:func:`span_episodes` of spans whose ``values`` (nt, n) passed ``limit``, each record with its
+    largest value under ``key``."""
+    out = span_episodes(t, limit - values, names, "_margin")
     for r in out:
         del r["_margin"]
-        r["max_strain"] = float(np.max(strain[:, list(names).index(r["span"])]))
+        r[key] = float(np.max(values[:, list(names).index(r["span"])]))
     return out
 
 
@@ -138,11 +143,9 @@ def displaced_span_ends(t, slides, lengths, names) -> list[dict]:
     """
     size = np.max(np.abs(np.asarray(slides)), axis=2)  # (nt, n) m: the farther end of each span
     frac = size / np.asarray(lengths)[None, :]
-    out = span_episodes(t, END_SLIDE_FRACTION - frac, names, "_margin")
+    out = _beyond(t, frac, END_SLIDE_FRACTION, names, "fraction_of_span")
     for r in out:
-        j = list(names).index(r["span"])
-        del r["_margin"]
-        r.update(max_end_slide_mm=1e3 * float(np.max(size[:, j])), fraction_of_span=float(np.max(frac[:, j])))
+        r["max_end_slide_mm"] = 1e3 * float(np.max(size[:, list(names).index(r["span"])]))
     return out
 
 

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import critical, drive, schema
-from beltjax.drive import Installation, couplings
+from beltjax.drive import Installation, couplings, pivot
 from beltjax.scene import TENSIONER, Scene
 from beltjax.drive.effects import effects_of
 from beltjax.statics import StaticsError, check_installation, check_solved, solve_at
@@ -229,7 +229,7 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
         res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
         res.arm_on_stop = _arm_on_stop(scene.tensioner, res.tensioner_angle_deg, what)
     if scene.isolator is not None:  # the isolator's spring carries the drive torque
-        lag = abs(res.drive_torque_Nm / float(scene.isolator.stiffness))
+        lag = abs(float(couplings.isolator_lag(scene.isolator, res.drive_torque_Nm)))
         if lag > math.pi:
             raise StaticsError(f"the isolator's spring winds up by {math.degrees(lag):.4g} deg to carry the drive "
                                f"torque {res.drive_torque_Nm:.4g} N m at the {what}: beyond half a turn, no "
@@ -251,11 +251,11 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
 
 def _arm_on_stop(t, angle_deg: float, state: str) -> str | None:
     """The line saying that the tensioner arm (at ``angle_deg``, deg) is pressed into one of its end
-    stops in this ``state``, or None: there the stop, not the spring, sets the belt's tension."""
-    for key, stop, beyond in (("stop_min_deg", t.stop_min_deg, lambda s: angle_deg < s),
-                              ("stop_max_deg", t.stop_max_deg, lambda s: angle_deg > s)):
-        if stop is not None and beyond(float(stop)):
-            return (f"the tensioner arm rests on its end stop at the {state} ({angle_deg:.5g} deg, "
-                    f"{abs(angle_deg - float(stop)):.3g} deg into tensioner.{key} = {float(stop):.5g} deg): the "
-                    "stop, not the spring, sets the belt's tension there")
-    return None
+    stops in this ``state`` (:func:`beltjax.drive.pivot.stop_pressed`), or None: there the stop, not
+    the spring, sets the belt's tension."""
+    on = pivot.stop_pressed(t, angle_deg)
+    if on is None:
+        return None
+    key, stop = on
+    return (f"the tensioner arm rests on its end stop at the {state} ({angle_deg:.5g} deg, {abs(angle_deg - stop):.3g} "
+            f"deg into tensioner.{key} = {stop:.5g} deg): the stop, not the spring, sets the belt's tension there")

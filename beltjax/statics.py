@@ -237,12 +237,10 @@ def check_installation(scene: Scene, inst: Installation) -> None:
     t = scene.tensioner
     if t is not None:  # the end stops must contain the installed arm (else it rests on a stop)
         a = math.degrees(float(inst.arm_angle))
-        for k, stop, beyond in (("stop_max_deg", t.stop_max_deg, lambda s: a > s),
-                                ("stop_min_deg", t.stop_min_deg, lambda s: a < s)):
-            if stop is not None and beyond(float(stop)):
-                raise StaticsError(
-                    f"the arm settles at {a:.4g} deg, on its stop at {float(stop):.4g} deg: the stops must contain "
-                    "the installed arm angle (move the stop, or check the spring and the belt)", f"tensioner.{k}")
+        if on := pivot.stop_pressed(t, a):
+            raise StaticsError(
+                f"the arm settles at {a:.4g} deg, on its stop at {on[1]:.4g} deg: the stops must contain "
+                "the installed arm angle (move the stop, or check the spring and the belt)", f"tensioner.{on[0]}")
 
 
 # --------------------------------------------------------------------------- equilibrium

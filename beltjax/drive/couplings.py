@@ -150,6 +150,12 @@ def isolator_forces(f, bodies, bodies_dot, scene: Scene, t=None):
     return f.at[i, 2].add(isolator_moment(scene, bodies[i, 2], rate, t))
 
 
+def isolator_lag(isolator, drive_torque):
+    """How far (rad) an isolated crank's rim lags its hub in a steady motion: the drive torque
+    (N m) over the isolator's stiffness, -M / k."""
+    return -drive_torque / isolator.stiffness
+
+
 def isolator_wind_up(scene: Scene, inst, qi, drive_torque):
     """q_i (m, rad) of the steady state ``qi`` with an isolated crank's rim lagging its hub by the drive
     torque (N m) over the isolator's stiffness: the belt loop turned by that lag (pure JAX; ``qi``
@@ -159,5 +165,5 @@ def isolator_wind_up(scene: Scene, inst, qi, drive_torque):
     from beltjax import drive_modal
 
     d = scene.route.order.index(scene.isolator.pulley)  # the driven drive pulley
-    lag = -drive_torque / scene.isolator.stiffness  # rad
+    lag = isolator_lag(scene.isolator, drive_torque)  # rad
     return qi + drive_modal.rigid_mode(scene, inst) * (scene.route.senses[d] * inst.radii[d] * lag)

@@ -61,6 +61,16 @@ def stop_moment(theta, t):
     return m
 
 
+def stop_pressed(t, angle_deg: float) -> tuple[str, float] | None:
+    """(key, stop angle in deg) of the end stop an arm at ``angle_deg`` (deg, a number) is pressed
+    into, beyond it, where :func:`stop_moment` acts; None between the stops (or without any)."""
+    for key, stop, beyond in (("stop_max_deg", t.stop_max_deg, lambda s: angle_deg > s),
+                              ("stop_min_deg", t.stop_min_deg, lambda s: angle_deg < s)):
+        if stop is not None and beyond(float(stop)):
+            return key, float(stop)
+    return None
+
+
 def elastic_moment(theta, t):
     """The arm's conservative pivot moment (N m): spring and end stops."""
     return spring_moment(theta, t) + stop_moment(theta, t)
