@@ -25,6 +25,7 @@ contents: a TOML syntax error gives tomllib's description with line and column o
 from __future__ import annotations
 
 import os
+import pathlib
 import re
 import stat
 import tomllib
@@ -81,6 +82,28 @@ def _not_regular(mode: int) -> str:
     if stat.S_ISSOCK(mode):
         return "a socket"
     return "something other than a file"
+
+
+def outside_problem(base, name: str, shown: str, folder: str, rule: str, absolute_rule: str) -> str | None:
+    """Why the file ``name`` (shown as ``shown``) is not a file inside the folder ``base``, or
+    None: a NUL character, an absolute path, a path through ``..`` or a link that resolves
+    outside (or not at all).  ``folder`` names the folder, ``rule`` says where its files lie,
+    ``absolute_rule`` how they are named (the words of the caller's file kind)."""
+    if "\0" in name:
+        return "a file name cannot hold a NUL character"
+    pure = pathlib.PurePath(name)
+    if pure.is_absolute():
+        return f"{shown} is an absolute path: {absolute_rule}"
+    if ".." in pure.parts:
+        return f"{shown} leads out of {folder} through '..': {rule}"
+    root = pathlib.Path(base).resolve()
+    try:
+        real = (root / pure).resolve()
+    except (OSError, RuntimeError):  # a loop of links
+        return f"{shown}: a link that cannot be resolved"
+    if not real.is_relative_to(root):
+        return f"{shown} is a link to a file outside {folder}: {rule}"
+    return None
 
 
 def read_text(path, kind: str, fail: Fail = _raise) -> str:

@@ -26,25 +26,12 @@ def dataset_file(base, name: str, key: str) -> pathlib.Path:
     """
     if not isinstance(name, str) or not name:
         raise DataError(f"expected a file name (relative to the dataset's folder), got {show(name)}", key)
-    if "\0" in name:
-        raise DataError("a file name cannot hold a NUL character", key)
-    pure = pathlib.PurePath(name)
-    if pure.is_absolute():
-        raise DataError(f"{show(name)} is an absolute path: a dataset names only files inside its "
-                             "own folder, relative to it", key)
-    if ".." in pure.parts:
-        raise DataError(f"{show(name)} leads out of the dataset's folder through '..': a dataset names "
-                             "only files inside its own folder", key)
-    root = pathlib.Path(base).resolve()
-    path = root / pure
-    try:
-        real = path.resolve()
-    except (OSError, RuntimeError):  # a loop of links
-        raise DataError(f"{show(name)}: a link that cannot be resolved", key) from None
-    if not real.is_relative_to(root):
-        raise DataError(f"{show(name)} is a link to a file outside the dataset's folder: a dataset "
-                             "names only files inside its own folder", key)
-    return path
+    why = textfile.outside_problem(base, name, show(name), "the dataset's folder",
+                                   "a dataset names only files inside its own folder",
+                                   "a dataset names only files inside its own folder, relative to it")
+    if why:
+        raise DataError(why, key)
+    return pathlib.Path(base).resolve() / pathlib.PurePath(name)
 
 
 #: the largest magnitude a data value may have: the fits square and sum their data, and the square

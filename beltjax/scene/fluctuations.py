@@ -136,21 +136,11 @@ def _trace_file(t, base: str) -> tuple[str, str]:
     name = t.string("file", nonempty=True)
     shown = name if name.isprintable() else repr(name)
     shown = shown if len(shown) <= NAME_CHARS else shown[:NAME_CHARS - 3] + "..."
-    if "\0" in name:
-        t.fail("file", "a file name cannot hold a NUL character")
-    pure = pathlib.PurePath(name)
-    if pure.is_absolute():
-        t.fail("file", f"{shown} is an absolute path: a trace file is named relative to the scene file's folder")
-    if ".." in pure.parts:
-        t.fail("file", f"{shown} leads out of the scene file's folder through '..': a trace file lies inside it")
-    root = pathlib.Path(base).resolve()
-    try:
-        real = (root / pure).resolve()
-    except (OSError, RuntimeError):  # a loop of links
-        t.fail("file", f"{shown}: a link that cannot be resolved")
-    if not real.is_relative_to(root):
-        t.fail("file", f"{shown} is a link to a file outside the scene file's folder: a trace file lies inside it")
-    return str(root / pure), shown
+    why = textfile.outside_problem(base, name, shown, "the scene file's folder", "a trace file lies inside it",
+                                   "a trace file is named relative to the scene file's folder")
+    if why:
+        t.fail("file", why)
+    return str(pathlib.Path(base).resolve() / pathlib.PurePath(name)), shown
 
 
 def _header(head: list[str]) -> str:
