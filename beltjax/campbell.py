@@ -307,8 +307,8 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
         raise BeltjaxError(f"expected positive finite excitation orders, got {orders!r}", "orders")
     order = schema.FIELDS["fluctuation.order"]  # multiples of the drive pulley's speed, as a scene's
     for i, k in enumerate(o):
-        if schema.problem(order, k):
-            raise BeltjaxError(schema.problem(order, k), f"orders[{i}]")
+        if msg := schema.problem(order, k):
+            raise BeltjaxError(msg, f"orders[{i}]")
     if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise BeltjaxError(f"must be an integer >= 1, got {n_modes!r}", "n_modes")
     statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])), allow_supercritical=True, with_unloaded=False)
