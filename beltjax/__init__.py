@@ -18,17 +18,24 @@ from beltjax.errors import BeltjaxError  # noqa: E402
 from beltjax.span import SpanResult, analyse_span  # noqa: E402
 
 #: the public API beyond the span: name -> module that holds it (imported on first use)
+#: the public API: name -> (module, attribute), imported on first use
 _LAZY = {
-    "load_scene": "beltjax.scene",
-    "loads_scene": "beltjax.scene",
-    "parse_scene": "beltjax.scene",
-    "dumps_scene": "beltjax.scene",
-    "write_scene": "beltjax.scene",
-    "analyse_statics": "beltjax.statics",
-    "analyse_modes": "beltjax.drive_modal",
-    "analyse_campbell": "beltjax.campbell",
-    "simulate": "beltjax.transient",
-    "configure": "beltjax.runtime",
+    "load_scene": ("beltjax.scene", "load_scene"),
+    "loads_scene": ("beltjax.scene", "loads_scene"),
+    "parse_scene": ("beltjax.scene", "parse_scene"),
+    "dumps_scene": ("beltjax.scene", "dumps_scene"),
+    "write_scene": ("beltjax.scene", "write_scene"),
+    "analyse_statics": ("beltjax.statics", "analyse_statics"),
+    "analyse_modes": ("beltjax.drive_modal", "analyse_modes"),
+    "analyse_campbell": ("beltjax.campbell", "analyse_campbell"),
+    "simulate": ("beltjax.transient", "simulate"),
+    "response_over_speed": ("beltjax.orders", "response_over_speed"),
+    "load_sweep": ("beltjax.sweep", "load_spec"),
+    "sweep_cases": ("beltjax.sweep", "cases"),
+    "evaluate_cases": ("beltjax.sweep", "evaluate"),
+    "load_problem": ("beltjax.optimize", "load"),
+    "optimise": ("beltjax.optimize", "optimise"),
+    "configure": ("beltjax.runtime", "configure"),
 }
 
 
@@ -36,7 +43,8 @@ def __getattr__(name):
     if name in _LAZY:
         import importlib
 
-        return getattr(importlib.import_module(_LAZY[name]), name)
+        module, attr = _LAZY[name]
+        return getattr(importlib.import_module(module), attr)
     raise AttributeError(f"module 'beltjax' has no attribute {name!r}")
 
 

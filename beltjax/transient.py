@@ -44,7 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, excitation, runtime, signals, statics
+from beltjax import drive, excitation, runtime, signals, statics, validate
 from beltjax.drive import belt_slip, couplings
 from beltjax.span_flags import check_initial_strain, displaced_span_ends, overstretched_spans, run_warnings, slack_spans, slack_warning, slipping_pulleys, supercritical_spans  # noqa: F401
 from beltjax.errors import BeltjaxError
@@ -341,7 +341,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     """
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise TransientError(f"t_end: must be a finite time > 0 s, got {t_end!r}")
-    scene = drive.canonical(scene)
+    scene = validate.check_scene(drive.canonical(scene))  # its own keys before the excitation's checks
     if refused := belt_slip.transient_check(scene):
         raise TransientError(f"{refused[0]}: {refused[1]}", refused[0])
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, solver=default_solver(scene)))

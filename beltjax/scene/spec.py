@@ -350,7 +350,50 @@ def require_scene(scene) -> Scene:
     if not isinstance(scene, Scene):
         raise SceneError(f"scene: expected a beltjax Scene (read a scene file with beltjax.scene.load_scene), got "
                          f"{type(scene).__name__}", "scene")
+    if (bad := _leaf_problem(scene)) is not None:
+        raise SceneError(bad[1], bad[0], source=scene.source)
     return scene
+
+
+#: the scene's (x, y) leaves (m); every other number is a scalar, but a speed table's amplitudes
+_XY = ("center", "cm_offset", "pivot")
+#: the scene's tuples of tables -> the scene file's table name
+_TABLES = {"pulleys": "pulley", "torques": "torque", "span_loads": "span_load", "fluctuations": "fluctuation",
+           "decouplers": "decoupler"}
+
+
+def _leaf_problem(scene: Scene) -> tuple[str, str] | None:
+    """(scene-file key, message) of the first number of ``scene`` that is not a real number of its
+    shape (a scalar, an (x, y) pair, or a speed table's equal-length rows), else None.  A scene
+    built or changed through the Python API (``eqx.tree_at``, ``dataclasses.replace``) meets this
+    before any analysis (the file's parser never makes one).  Shapes only: traced leaves pass
+    unless their shape is wrong."""
+    for path, leaf in jax.tree_util.tree_flatten_with_path(scene)[0]:
+        parts, k, fluct = [], 0, None
+        while k < len(path):
+            name = getattr(path[k], "name", None)
+            if name in _TABLES and k + 1 < len(path) and hasattr(path[k + 1], "idx"):
+                i = path[k + 1].idx
+                fluct = scene.fluctuations[i] if name == "fluctuations" else None
+                parts.append((fluct.key if fluct is not None else "") or f"{_TABLES[name]}[{i}]")
+                k += 2
+                continue
+            parts.append(str(name if name is not None else getattr(path[k], "idx", path[k])))
+            k += 1
+        key, field = ".".join(parts), parts[-1]
+        kind = getattr(getattr(leaf, "dtype", None), "kind", None) or np.asarray(leaf).dtype.kind
+        if kind not in "biuf":
+            return key, f"{key}: must be a real number, got {type(leaf).__name__} of kind {kind!r}"
+        shape = tuple(np.shape(leaf))
+        want: tuple = (2,) if field in _XY else ()
+        if fluct is not None and fluct.rpm is not None and field in ("amplitude_deg", "rpm"):
+            want = tuple(np.shape(fluct.rpm)) if np.ndim(fluct.rpm) == 1 else (-1,)
+        if shape != want:
+            what = ("an (x, y) pair" if want == (2,) else "a number" if want == ()
+                    else f"a row of numbers, one per speed of its rpm row ({want[0]})" if want[0] >= 0
+                    else "a row of speeds")
+            return key, f"{key}: must be {what}, got an array of shape {shape}"
+    return None
 
 
 def drive_pulley_index(pulleys, names=None) -> int:
