@@ -309,8 +309,7 @@ def analyse_campbell(scene: Scene, rpm, orders=DEFAULT_ORDERS, n_modes: int = 20
     for i, k in enumerate(o):
         if msg := schema.problem(order, k):
             raise BeltjaxError(msg, f"orders[{i}]")
-    if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
-        raise BeltjaxError(f"must be an integer >= 1, got {n_modes!r}", "n_modes")
+    validate.count(n_modes, "n_modes")
     statics.analyse_statics(scene, float(drive.belt_speed(scene, rpm[0])), allow_supercritical=True, with_unloaded=False)
     tm = campbell_modes(scene, rpm, n_modes, progress=progress)
     t = tm.tracking

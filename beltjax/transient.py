@@ -264,9 +264,6 @@ def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states, dt
                             max_steps, states)
 
 
-# --------------------------------------------------------------------------- outputs
-
-
 # --------------------------------------------------------------------------- result
 
 
@@ -348,7 +345,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     dt = default_dt(scene) if dt is None else float(dt)
     if not (math.isfinite(dt) and 0 < dt < t_end):
         raise TransientError(f"dt: must be > 0 and below t_end = {t_end!r} s, got {dt!r}")
-    out_dt = default_output_dt(scene) if output_dt is None else float(output_dt)
+    out_dt = default_output_dt(scene) if output_dt is None else validate.interval(output_dt, "output_dt")
     fixed = scene.simulation.solver == "generalized_alpha"
     if fixed:
         if out_dt < dt * (1 - 1e-9):
@@ -376,7 +373,8 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
             f"limit of {MAX_STEPS} (about a minute of the rotational model, hours of the hybrid one): shorten the "
             "run or raise dt")
     dtmax = None if forcing.dtmax is None else jnp.asarray(forcing.dtmax)
-    per_chunk = max(1, int(round((chunk_s or max(0.05, min(1.0, t_end / 10))) / out_dt)))
+    chunk_s = max(0.05, min(1.0, t_end / 10)) if chunk_s is None else validate.interval(chunk_s, "chunk_s")
+    per_chunk = max(1, int(round(chunk_s / out_dt)))
     n_chunks = -(-n_out // per_chunk)
     steps_per_chunk = int(math.ceil(per_chunk * out_dt / dt)) + 8
     max_steps = steps_per_chunk if fixed else scene.simulation.max_steps

@@ -396,3 +396,23 @@ def speeds(values, key: str = "rpm", field: str = "drive.rpm") -> np.ndarray:
         i = int(np.argmax(bad))
         raise BeltjaxError(schema.problem(schema.FIELDS[field], v[i]), f"{key}[{i}]")
     return v
+
+
+def count(value, key: str) -> int:
+    """``value`` as an int if it is an integer >= 1 (a bool is not), else a one-line
+    :class:`BeltjaxError` naming ``key`` (an API argument: modes kept, cases per chunk, ...)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise BeltjaxError(f"must be an integer >= 1, got {value!r}", key)
+    return int(value)
+
+
+def interval(value, key: str) -> float:
+    """``value`` as a float if it is a finite number > 0 (an API argument in s: an output
+    interval, a chunk's length), else a one-line :class:`BeltjaxError` naming ``key``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise BeltjaxError(f"expected a number, got {value!r}", key) from None
+    if not (math.isfinite(v) and v > 0):
+        raise BeltjaxError(f"must be a finite time > 0 s, got {value!r}", key)
+    return v

@@ -73,3 +73,22 @@ def test_simulate_checks_the_scene_before_the_excitation():
     with pytest.raises(BeltjaxError, match=r"^pulley\[0\]\.speed_rpm: must lie in"):
         beltjax.simulate(bad, 0.05)
     assert np.isfinite(float(sc.pulleys[0].speed_rpm))
+
+
+@pytest.mark.parametrize("call, key", [
+    (lambda s: beltjax.simulate(s, 0.1, output_dt=float("nan")), "output_dt"),
+    (lambda s: beltjax.simulate(s, 0.1, chunk_s=0.0), "chunk_s"),
+    (lambda s: beltjax.simulate(s, 0.1, chunk_s="x"), "chunk_s"),
+    (lambda s: beltjax.evaluate_cases(s, {"belt.EA": [1e5]}, modes=0), "modes"),
+    (lambda s: beltjax.evaluate_cases(s, {"belt.EA": [1e5]}, chunk=0), "chunk"),
+    (lambda s: beltjax.evaluate_cases(s, {"belt.EA": [1e5]}, chunk=2.5), "chunk"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], chunk=-1), "chunk"),
+    (lambda s: beltjax.analyse_campbell(s, [0.0, 100.0], n_modes=True), "n_modes"),
+])
+def test_api_arguments_refused_with_their_name(call, key):
+    """Arguments the Python API takes beside the scene: one line naming the argument, before any work."""
+    sc = beltjax.load_scene(ROOT / "scenes" / "fead_8pulley.toml")
+    with pytest.raises(BeltjaxError) as e:
+        call(sc)
+    msg = str(e.value)
+    assert msg.startswith(f"{key}:") and "\n" not in msg, msg

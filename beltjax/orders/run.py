@@ -255,6 +255,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     if given.method not in METHODS:
         raise OrdersError(f"method: {given.method!r}; choose one of {', '.join(METHODS)}", "method")
     check(scene, rpm)
+    chunk = None if chunk is None else validate.count(chunk, "chunk")
     problem = settle_problem(settle_s)
     if problem:
         raise OrdersError(problem, "settle_s")

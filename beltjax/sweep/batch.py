@@ -347,7 +347,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     rpm = np.zeros(0) if "campbell" not in outputs else np.asarray(rpm, dtype=float).reshape(-1)
     if "campbell" in outputs and rpm.size == 0:
         raise SweepError("the campbell output needs drive-pulley speeds (rpm)", "rpm")
-    modes = max(1, min(int(modes), drive.n_independent(scene)))
+    modes = min(validate.count(modes, "modes"), drive.n_independent(scene))
+    chunk = None if chunk is None else validate.count(chunk, "chunk")
     dp = scene.route.order[drive.drive_pulley(scene)]
     moving = float(drive.belt_speed(scene)) != 0.0 or f"pulley.{dp}.speed_rpm" in values
     refs, track = {}, 0
