@@ -138,6 +138,9 @@ def analyse_statics(scene: Scene, speed: float | None = None, *, allow_supercrit
     from beltjax import validate
 
     validate.check_scene(scene)
+    for name, given in (("allow_supercritical", allow_supercritical), ("with_unloaded", with_unloaded)):
+        validate.flag(given, name)
+    validate.flag(loaded, "loaded", allow_none=True)
     v = float(drive.belt_speed(scene)) if speed is None else schema.number(speed, "speed", "drive.speed")
     scene = drive.statics_scene(scene)  # one compiled statics per drive, whatever its transient tables
     if loaded is None:

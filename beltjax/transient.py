@@ -342,7 +342,7 @@ def simulate(scene: Scene, t_end: float, *, dt: float | None = None, output_dt: 
     if refused := belt_slip.transient_check(scene):
         raise TransientError(f"{refused[0]}: {refused[1]}", refused[0])
     scene = dataclasses.replace(scene, simulation=dataclasses.replace(scene.simulation, solver=default_solver(scene)))
-    dt = default_dt(scene) if dt is None else float(dt)
+    dt = default_dt(scene) if dt is None else validate.interval(dt, "dt")
     if not (math.isfinite(dt) and 0 < dt < t_end):
         raise TransientError(f"dt: must be > 0 and below t_end = {t_end!r} s, got {dt!r}")
     out_dt = default_output_dt(scene) if output_dt is None else validate.interval(output_dt, "output_dt")

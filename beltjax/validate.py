@@ -416,3 +416,11 @@ def interval(value, key: str) -> float:
     if not (math.isfinite(v) and v > 0):
         raise BeltjaxError(f"must be a finite time > 0 s, got {value!r}", key)
     return v
+
+
+def flag(value, key: str, allow_none: bool = False) -> bool | None:
+    """``value`` if it is a bool (or None where ``allow_none``), else a one-line
+    :class:`BeltjaxError` naming ``key`` (an API switch: a string "no" would be true)."""
+    if isinstance(value, (bool, np.bool_)) or (allow_none and value is None):
+        return value if value is None else bool(value)
+    raise BeltjaxError(f"must be True or False{' or None' if allow_none else ''}, got {value!r}", key)

@@ -75,6 +75,13 @@ def test_simulate_checks_the_scene_before_the_excitation():
     assert np.isfinite(float(sc.pulleys[0].speed_rpm))
 
 
+def _orders_settings(**kw):
+    from beltjax.orders import Settings
+
+    return Settings(**kw)
+
+
+
 @pytest.mark.parametrize("call, key", [
     (lambda s: beltjax.simulate(s, 0.1, output_dt=float("nan")), "output_dt"),
     (lambda s: beltjax.simulate(s, 0.1, chunk_s=0.0), "chunk_s"),
@@ -84,6 +91,20 @@ def test_simulate_checks_the_scene_before_the_excitation():
     (lambda s: beltjax.evaluate_cases(s, {"belt.EA": [1e5]}, chunk=2.5), "chunk"),
     (lambda s: beltjax.response_over_speed(s, [800.0], chunk=-1), "chunk"),
     (lambda s: beltjax.analyse_campbell(s, [0.0, 100.0], n_modes=True), "n_modes"),
+    (lambda s: beltjax.simulate(s, 0.1, dt="x"), "dt"),
+    (lambda s: beltjax.analyse_statics(s, loaded="no"), "loaded"),
+    (lambda s: beltjax.analyse_statics(s, with_unloaded=1), "with_unloaded"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], settings=_orders_settings(rtol=float("nan"))), "rtol"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], settings=_orders_settings(atol=0.0)), "atol"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], settings=_orders_settings(max_steps=0)), "max_steps"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], settle_tol=float("nan")), "settle_tol"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], values={"belt.EA": [1e5, 2e5]}), "values"),
+    (lambda s: beltjax.evaluate_cases(s, {"belt.EI": ["a"]}), "values"),
+    (lambda s: beltjax.evaluate_cases(s, {"belt.EI": [0.03]}, reference="bogus"), "reference"),
+    (lambda s: beltjax.evaluate_cases(s, {"belt.EI": [0.03]}, outputs=("campbell",), rpm=[float("nan")]), "rpm[0]"),
+    (lambda s: beltjax.evaluate_cases(s, {"belt.EI": [0.03]}, outputs=("response",), settle_s=float("nan")),
+     "settle_s"),
+    (lambda s: beltjax.write_scene(s, "/nonexistent-folder/x.toml"), "path"),
 ])
 def test_api_arguments_refused_with_their_name(call, key):
     """Arguments the Python API takes beside the scene: one line naming the argument, before any work."""

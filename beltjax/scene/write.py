@@ -213,5 +213,8 @@ def write_scene(scene: Scene, path: str | os.PathLike, header: str = "") -> None
     """Write ``scene`` to the TOML file ``path`` (see :func:`dumps_scene`; nothing is written
     when the text does not read back to the scene)."""
     text = dumps_scene(scene, header)
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(text)
+    try:
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write(text)
+    except OSError as exc:  # one line naming the path, as every input problem
+        raise SceneError(f"cannot write the scene to {path}: {exc.strerror or exc}", "path") from None

@@ -329,7 +329,13 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         raise SweepError(f"choose from {', '.join(OUTPUTS)}", "outputs")
     if backend not in ("local", "dask"):
         raise SweepError(f"must be \"local\" or \"dask\", got {backend!r}", "backend")
-    values = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in values.items()}
+    try:
+        values = {k: np.asarray(v, dtype=float).reshape(-1) for k, v in values.items()}
+    except (TypeError, ValueError):
+        raise SweepError("every parameter's values must be numbers", "values") from None
+    if isinstance(reference, str) and reference != "auto":
+        raise SweepError(f'"auto", None or the references of beltjax.sweep_modes.references, got {reference!r}',
+                         "reference")
     if not values:
         raise SweepError("no parameters given", "values")
     lengths = {len(v) for v in values.values()}
@@ -347,6 +353,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     rpm = np.zeros(0) if "campbell" not in outputs else np.asarray(rpm, dtype=float).reshape(-1)
     if "campbell" in outputs and rpm.size == 0:
         raise SweepError("the campbell output needs drive-pulley speeds (rpm)", "rpm")
+    if "campbell" in outputs:
+        validate.speeds(rpm, "rpm", "drive.rpm")
     modes = min(validate.count(modes, "modes"), drive.n_independent(scene))
     chunk = None if chunk is None else validate.count(chunk, "chunk")
     dp = scene.route.order[drive.drive_pulley(scene)]
@@ -357,6 +365,10 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
         from beltjax.orders import OrdersError, Settings, check, fallback_device, fallback_passes, for_scene
+        from beltjax.orders.run import settle_problem
+
+        if problem := settle_problem(settle_s):
+            raise SweepError(problem, "settle_s")
 
         try:
             check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
