@@ -105,6 +105,16 @@ def _orders_settings(**kw):
     (lambda s: beltjax.evaluate_cases(s, {"belt.EI": [0.03]}, outputs=("response",), settle_s=float("nan")),
      "settle_s"),
     (lambda s: beltjax.write_scene(s, "/nonexistent-folder/x.toml"), "path"),
+    (lambda s: beltjax.response_over_speed(s, None), "rpm"),
+    (lambda s: beltjax.response_over_speed(s, "fast"), "rpm"),
+    (lambda s: beltjax.evaluate_cases(s, None), "values"),
+    (lambda s: beltjax.sweep_cases(s, None), "spec"),
+    (lambda s: beltjax.optimise(s, None), "problem"),
+    (lambda s: beltjax.sweep_cases(None, beltjax.load_sweep(ROOT / "scenes" / "sweeps" / "two_pulley_tolerance.toml")),
+     "scene"),
+    (lambda s: beltjax.load_problem(ROOT / "scenes" / "optimize" / "tensioner_pivot.toml", None), "scene"),
+    (lambda s: beltjax.evaluate_cases(None, {"belt.EI": [0.03]}), "scene"),
+    (lambda s: beltjax.dumps_scene(None), "scene"),
 ])
 def test_api_arguments_refused_with_their_name(call, key):
     """Arguments the Python API takes beside the scene: one line naming the argument, before any work."""

@@ -11,7 +11,7 @@ import numpy as np
 from beltjax import drive, friction, parameters, schema, textfile, tomltable
 from beltjax.errors import BeltjaxError
 from beltjax.schema import Field
-from beltjax.scene import MAX_ELEMENTS_PER_SPAN, Scene
+from beltjax.scene import MAX_ELEMENTS_PER_SPAN, Scene, require_scene
 from beltjax.tomltable import describe
 
 #: most starts of one run (``starts``); the candidates for starts after the first: see beltjax.optimize.solver
@@ -339,6 +339,7 @@ def parse(spec: dict, scene: Scene) -> Problem:
     bounds, a parameter path the scene lacks, a start outside the bounds, no variables or
     no objectives, steps < 1 and the like.
     """
+    require_scene(scene)
     t = _READ.table(spec, "", _TOP_KEYS)
     variables = tuple(_parse_variable(d, i, scene) for i, d in enumerate(t.tables("variable")))
     if not variables:

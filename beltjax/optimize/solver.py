@@ -35,7 +35,7 @@ import numpy as np
 import optax
 
 from beltjax import parameters
-from beltjax.scene import Scene
+from beltjax.scene import Scene, require_scene
 from beltjax.optimize.goal import layout_status, overlaps, rank
 from beltjax.optimize.loss import WATCHED, _compiled, _loss_key, band_weights, problem_masks
 from beltjax.optimize.problem import OptimizeError, Problem, _band_starts, _bands, sample_rpm, working_scene
@@ -158,6 +158,10 @@ def optimise(scene: Scene, problem: Problem, progress: Callable[[dict], None] | 
     Returns the best step (module docstring), never NaN; raises OptimizeError when the start
     cannot be built or run, or a band watches no mode.
     """
+    require_scene(scene)
+    if not isinstance(problem, Problem):
+        raise OptimizeError(f"problem: expected an optimisation problem (beltjax.load_problem), got "
+                            f"{type(problem).__name__}", "problem")
     t_start = time.perf_counter()
     work = working_scene(scene, problem)
     scales = problem.scales

@@ -246,7 +246,10 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     :class:`OrdersError` for a scene or speeds without a steady state in crank angle
     (:func:`check`)."""
     scene = drive.canonical(scene)
-    rpm = np.asarray(rpm, dtype=float).ravel()
+    try:
+        rpm = np.asarray(rpm if rpm is not None else (), dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise OrdersError(f"rpm: expected an array of speeds (rev/min), got {rpm!r}", "rpm") from None
     given = settings or Settings()  # its choices checked before any work on the scene
     if given.solver not in SOLVERS:
         raise OrdersError(f"solver: {given.solver!r}; choose one of {', '.join(SOLVERS)}", "solver")

@@ -18,7 +18,7 @@ import jax
 import numpy as np
 
 from beltjax import schema, tomlwrite
-from beltjax.scene.spec import Scene, SceneError, drive_pulley_index
+from beltjax.scene.spec import Scene, SceneError, drive_pulley_index, require_scene
 
 
 def _f(x) -> float:
@@ -193,6 +193,7 @@ def dumps_scene(scene: Scene, header: str = "") -> str:
     key, e.g. a value that no scene file may hold)."""
     from beltjax.scene.read import loads_scene
 
+    require_scene(scene)
     notes = [header] if header else []
     files = sorted({f.file for f in scene.fluctuations if f.file})
     comments = {"": "\n".join(notes)}

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import critical, drive, drive_modal, friction, mode_batch, mode_tracking, parameters, statics, sweep_modes, validate
-from beltjax.scene import Scene
+from beltjax.scene import Scene, require_scene
 from beltjax.sweep.spec import MAX_CASES, OUTPUTS, STATUS, SweepError, _CODE, _precheck
 from beltjax.sweep.chunks import _chunk_size, _devices, default_chunk  # noqa: F401 (re-exported)
 from beltjax.drive.effects import effects_of
@@ -322,6 +322,9 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
     cycle, a cycle not settled: :data:`beltjax.orders.FLAGS_KEEPING_NUMBERS`), which keep their
     numbers beside the status, as in ``beltjax orders``.
     """
+    require_scene(scene)
+    if not isinstance(values, Mapping):
+        raise SweepError(f"expected {{parameter path: values}}, got {type(values).__name__}", "values")
     outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     bad = [o for o in outputs if o not in OUTPUTS]
     outputs = tuple(o for o in OUTPUTS if o in outputs)

@@ -12,7 +12,7 @@ import numpy as np
 
 from beltjax import drive, parameters, schema, statics, textfile, tomltable, validate
 from beltjax.errors import BeltjaxError
-from beltjax.scene import Scene
+from beltjax.scene import Scene, require_scene
 from beltjax.tomltable import describe
 
 
@@ -371,6 +371,9 @@ def _check_band(scene: Scene, a: RandomAxis) -> None:
 def check_spec(scene: Scene, spec: Spec) -> None:
     """Check a parsed sweep against ``scene``: parameter paths, value ranges and the random
     spreads' bands (:func:`_check_band`) (:class:`SweepError`)."""
+    require_scene(scene)
+    if not isinstance(spec, Spec):
+        raise SweepError(f"expected a sweep (beltjax.load_sweep), got {type(spec).__name__}", "spec")
     for a in [*spec.grid, *spec.random]:
         try:
             parameters.check(scene, a.parameter)
