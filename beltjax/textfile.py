@@ -106,11 +106,19 @@ def outside_problem(base, name: str, shown: str, folder: str, rule: str, absolut
     return None
 
 
+def file_name(path, kind: str, fail: Fail = _raise) -> str:
+    """``path`` (str or path-like) as a str, else ``fail("path", message)`` (None, bytes, a number:
+    what a Python caller may pass for a file of ``kind``)."""
+    if not isinstance(path, (str, os.PathLike)) or not isinstance(p := os.fspath(path), str):
+        fail("path", f"the {NOUNS[kind]} must be given as a file name (str or path), got {type(path).__name__}")
+    return p
+
+
 def read_text(path, kind: str, fail: Fail = _raise) -> str:
     """The text of the file at ``path`` (str or path-like), a file of ``kind`` (a key of
     :data:`LIMITS`): a regular UTF-8 file of at most ``LIMITS[kind]`` bytes, its byte-order
     mark dropped.  Anything else is ``fail(path, message)``; pipes and devices are never opened."""
-    p = os.fspath(path)
+    p = file_name(path, kind, fail)
     noun, limit = NOUNS[kind], LIMITS[kind]
     if not p:
         fail(p, f"empty file name for the {noun}")

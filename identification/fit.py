@@ -42,11 +42,10 @@ SECTIONS = ("tensile", "torque_angle", "impulse", "modal")
 def load(path: pathlib.Path) -> dict:
     """The dataset's TOML tables; :class:`DataError` for a missing file, one that is not a regular
     file of bounded size, malformed TOML or values no key can carry (see :mod:`beltjax.textfile`)."""
-    path = pathlib.Path(path)
-
     def fail(key, message):
         raise DataError(message, key)
 
+    path = pathlib.Path(textfile.file_name(path, "dataset", fail))
     data = textfile.load_toml(path, "dataset", textfile.keyed(fail))
     unknown = [k for k in data if k not in SECTIONS]
     if unknown:
@@ -58,8 +57,8 @@ def load(path: pathlib.Path) -> dict:
 
 def fit_dataset(path: pathlib.Path) -> dict:
     """Fit every section of the dataset at ``path``: {section: result object}."""
-    path = pathlib.Path(path)
     data = load(path)
+    path = pathlib.Path(path)
     fitters = _fitters()
     return {name: fitters[name](data[name], path.parent, name) for name in SECTIONS if name in data}
 

@@ -75,6 +75,12 @@ def test_simulate_checks_the_scene_before_the_excitation():
     assert np.isfinite(float(sc.pulleys[0].speed_rpm))
 
 
+def _fit_dataset(path):
+    from identification.fit import fit_dataset
+
+    return fit_dataset(path)
+
+
 def _orders_settings(**kw):
     from beltjax.orders import Settings
 
@@ -115,6 +121,11 @@ def _orders_settings(**kw):
     (lambda s: beltjax.load_problem(ROOT / "scenes" / "optimize" / "tensioner_pivot.toml", None), "scene"),
     (lambda s: beltjax.evaluate_cases(None, {"belt.EI": [0.03]}), "scene"),
     (lambda s: beltjax.dumps_scene(None), "scene"),
+    (lambda s: beltjax.load_scene(None), "path"),
+    (lambda s: beltjax.load_scene(b"scenes/fead_8pulley.toml"), "path"),
+    (lambda s: beltjax.load_sweep(None), "path"),
+    (lambda s: beltjax.load_problem(None, s), "path"),
+    (lambda s: _fit_dataset(None), "path"),
 ])
 def test_api_arguments_refused_with_their_name(call, key):
     """Arguments the Python API takes beside the scene: one line naming the argument, before any work."""

@@ -376,7 +376,8 @@ def parse(spec: dict, scene: Scene) -> Problem:
 def load(path, scene: Scene) -> Problem:
     """Read and validate an optimisation file (TOML, read by :mod:`beltjax.textfile`: a regular
     file of bounded size); :class:`OptimizeError` names the file or key."""
-    spec = textfile.load_toml(str(path), "optimisation", textfile.keyed(_raise))
+    spec = textfile.load_toml(textfile.file_name(path, "optimisation", textfile.keyed(_raise)), "optimisation",
+                              textfile.keyed(_raise))
     return parse(spec, scene)
 
 

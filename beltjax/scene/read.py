@@ -162,7 +162,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     byte-order mark is accepted), malformed TOML (with the line and column), values no key can
     carry (see :mod:`beltjax.textfile`) or an invalid scene.
     """
-    p = os.fspath(path)
+    p = textfile.file_name(path, "scene", _fail)
     data = textfile.load_toml(p, "scene", functools.partial(_fail, source=p))
     return parse_scene(data, source=p)
 

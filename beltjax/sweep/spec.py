@@ -321,7 +321,7 @@ def parse_spec(data: Mapping[str, Any], source: str = "<dict>") -> Spec:
 def load_spec(path: str | os.PathLike) -> Spec:
     """Read and validate a sweep file (TOML, read by :mod:`beltjax.textfile`: a regular file of
     bounded size); raises :class:`SweepError` (one line)."""
-    p = os.fspath(path)
+    p = textfile.file_name(path, "sweep", textfile.keyed(_raise))
     data = textfile.load_toml(p, "sweep", textfile.keyed(_raise))
     return parse_spec(data, source=p)
 
