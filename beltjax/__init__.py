@@ -17,7 +17,6 @@ from beltjax.ancf import Section  # noqa: E402
 from beltjax.errors import BeltjaxError  # noqa: E402
 from beltjax.span import SpanResult, analyse_span  # noqa: E402
 
-#: the public API beyond the span: name -> module that holds it (imported on first use)
 #: the public API: name -> (module, attribute), imported on first use
 _LAZY = {
     "load_scene": ("beltjax.scene", "load_scene"),

@@ -406,16 +406,23 @@ def count(value, key: str) -> int:
     return int(value)
 
 
-def interval(value, key: str) -> float:
-    """``value`` as a float if it is a finite number > 0 (an API argument in s: an output
-    interval, a chunk's length), else a one-line :class:`BeltjaxError` naming ``key``."""
+def positive(value, key: str, what: str = "number", unit: str = "", upper: float = math.inf) -> float:
+    """``value`` as a float if it is a finite number > 0 (and at most ``upper``; an API argument:
+    a tolerance, a time in s), else a one-line :class:`BeltjaxError` naming ``key`` and saying
+    ``what`` it is (with its ``unit``)."""
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise BeltjaxError(f"expected a number, got {value!r}", key) from None
-    if not (math.isfinite(v) and v > 0):
-        raise BeltjaxError(f"must be a finite time > 0 s, got {value!r}", key)
+    if not (math.isfinite(v) and 0 < v <= upper):
+        bound = f" and at most {upper:g}{unit}" if upper < math.inf else ""
+        raise BeltjaxError(f"must be a finite {what} > 0{unit}{bound}, got {value!r}", key)
     return v
+
+
+def interval(value, key: str) -> float:
+    """:func:`positive` for a time (s): an output interval, a chunk's length."""
+    return positive(value, key, "time", " s")
 
 
 def flag(value, key: str, allow_none: bool = False) -> bool | None:

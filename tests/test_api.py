@@ -104,6 +104,8 @@ def _orders_settings(**kw):
     (lambda s: beltjax.response_over_speed(s, [800.0], settings=_orders_settings(atol=0.0)), "atol"),
     (lambda s: beltjax.response_over_speed(s, [800.0], settings=_orders_settings(max_steps=0)), "max_steps"),
     (lambda s: beltjax.response_over_speed(s, [800.0], settle_tol=float("nan")), "settle_tol"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], settle_tol="x"), "settle_tol"),
+    (lambda s: beltjax.response_over_speed(s, [800.0], settings=_orders_settings(atol=float("inf"))), "atol"),
     (lambda s: beltjax.response_over_speed(s, [800.0], values={"belt.EA": [1e5, 2e5]}), "values"),
     (lambda s: beltjax.evaluate_cases(s, {"belt.EI": ["a"]}), "values"),
     (lambda s: beltjax.evaluate_cases(s, {"belt.EI": [0.03]}, reference="bogus"), "reference"),
