@@ -421,7 +421,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="drive pulley speeds A:B:STEP [rpm], end included, all > 0 (e.g. 600:6000:50)")
     od.add_argument("--method", default="shooting",  # checked by beltjax.orders (its METHODS)
                     help="shooting or settle: periodic steady state by shooting (Newton on the one-cycle map; "
-                         "default; a drive with belt_slip settles) or by a settling transient")
+                         "default; belt_slip and the hybrid model settle) or by a settling transient")
     od.add_argument("--settle-s", dest="settle_s", type=_number("settle-s", True), default=1.0,
                     help="transient time before the recorded cycle [s] of the settling method and of the speeds "
                          "the shooting did not converge at (default 1; speeds that have not settled run again 4x "

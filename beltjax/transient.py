@@ -191,7 +191,8 @@ def default_solver(scene: Scene) -> str:
     return drive.spans_of(scene).default_solver
 
 
-def _solver(scene: Scene, dtmax=None):
+def solver_of(scene: Scene, dtmax=None):
+    """(diffrax solver, step-size controller) of ``scene``'s ``[simulation] solver`` (set; dtmax: largest adaptive step, s)."""
     sim = scene.simulation
     name = sim.solver
     if name == "generalized_alpha":
@@ -250,17 +251,17 @@ def _solve_chunk(term, solver, controller, y0, ts, dt0, max_steps: int, states):
 
 @eqx.filter_jit
 def _start(scene: Scene, inst, y0, t0, dt0, dtmax=None):
-    """:func:`_start_states` of the scene's solver (:func:`_solver`; dtmax: largest adaptive step, s)."""
+    """:func:`_start_states` of the scene's solver (:func:`solver_of`; dtmax: largest adaptive step, s)."""
     with runtime.cacheable():
-        return _start_states(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, t0, dt0)
+        return _start_states(diffrax.ODETerm(vector_field(scene, inst)), *solver_of(scene, dtmax), y0, t0, dt0)
 
 
 @eqx.filter_jit
 def _integrate_chunk(scene: Scene, inst, y0, ts, dt0, max_steps: int, states, dtmax=None):
-    """:func:`_solve_chunk` of the scene's vector field and solver (:func:`_solver`; dtmax:
+    """:func:`_solve_chunk` of the scene's vector field and solver (:func:`solver_of`; dtmax:
     largest adaptive step, s)."""
     with runtime.cacheable():  # kept by the persistent compilation cache: a re-run does not recompile
-        return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *_solver(scene, dtmax), y0, ts, dt0,
+        return _solve_chunk(diffrax.ODETerm(vector_field(scene, inst)), *solver_of(scene, dtmax), y0, ts, dt0,
                             max_steps, states)
 
 

@@ -157,6 +157,12 @@ def case(id, input, wrong, argv, *expect, how="main", compiles=False):
 T2 = str(T200_PATH)
 FEAD = (SCENES / "fead_8pulley.toml").read_text()
 TB = str(BENCH_PATH)
+
+
+def t200_slip(d):
+    """The hybrid two-pulley bench (T = 200 N) with belt_slip and a friction coefficient, written to d."""
+    return write(d, "scene.toml", edit(T200, ("static_tension = 200.0 ", "friction_coefficient = 0.3\nstatic_tension = 200.0 "),
+                                       ('effects = ["transport"]', 'effects = ["transport", "belt_slip"]')))
 CASES = [
     # ---------------------------------------------------------------- scene files (statics)
     case("scene-malformed-toml", "`statics`: `EA = 111190.0 N`", "malformed TOML (a unit after the number)",
@@ -257,10 +263,7 @@ CASES = [
          "fluctuation[2].amplitude_deg", "one per speed"),
     case("scene-belt-slip-hybrid", "`simulate`: `belt_slip` in a hybrid transient (two-pulley bench)",
          "creep and gross slip dynamics asked of the hybrid model's transient (its statics takes the running belt)",
-         lambda d: ["simulate", write(d, "scene.toml", edit(T200, ("static_tension = 200.0 ", "friction_coefficient = 0.3\n"
-                                                                   "static_tension = 200.0 "),
-                                                           ('effects = ["transport"]', 'effects = ["transport", "belt_slip"]'))),
-                    "--t-end", "0.01"],
+         lambda d: ["simulate", t200_slip(d), "--t-end", "0.01"],
          "model.effects", "rotational model's transient"),
     case("scene-belt-slip-no-friction", "`statics`: `belt_slip` with a pulley without a friction coefficient",
          "slip asked of arcs with no friction coefficient (8-pulley drive: the belt's removed, the A/C given its own)",
@@ -268,8 +271,10 @@ CASES = [
                                                           ('"speed_fluctuation"]', '"speed_fluctuation", "belt_slip"]'),
                                                           ("radius = 0.060\n", "radius = 0.060\nfriction_coefficient = 1.0\n")))],
          "belt.friction_coefficient", "every wrapped arc"),
-    case("orders-hybrid", "`orders` of the hybrid tensioner bench", "a response over speed of the hybrid model",
-         lambda d: ["orders", TB, "--rpm", "600:800:100"], "model.fidelity", "rotational"),
+    case("orders-belt-slip-hybrid", "`orders`: `belt_slip` in a hybrid response over speed (two-pulley bench)",
+         "creep and gross slip dynamics asked of the hybrid model's transient",
+         lambda d: ["orders", t200_slip(d), "--rpm", "600:800:100"],
+         "model.effects", "rotational model's transient"),
     case("orders-load-window", "`orders`: a `[[torque]]` with `t_end_s` (8-pulley drive)",
          "a load that switches off has no steady state",
          lambda d: ["orders", write(d, "scene.toml", FEAD + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 1.0\n'

@@ -272,7 +272,7 @@ def _arm_motion(t, d, scene: Scene, weight: float) -> Objective:
     """An arm_motion objective: the tensioner arm's largest peak-to-peak (deg) in the periodic
     steady state over a speed band (the scene must have one: :func:`beltjax.orders.check`)."""
     from beltjax.orders import OrdersError, Settings, check, for_scene
-    from beltjax.orders.run import settle_problem
+    from beltjax.orders.run import check_batched, settle_problem
 
     rpm = _band_rpm(t, d)
     if rpm[0] <= 0:
@@ -281,6 +281,7 @@ def _arm_motion(t, d, scene: Scene, weight: float) -> Objective:
         t.fail("kind", "arm_motion needs a [tensioner]")
     try:
         check(scene, rpm)
+        check_batched(scene, "arm_motion")
     except OrdersError as exc:
         t.fail("kind", f"arm_motion needs a periodic steady state: {exc}")
     settle_s = t.number("settle_s", required=False, default=1.0, nonnegative=True)

@@ -24,6 +24,13 @@ def _panels(result) -> list[tuple[str, int | None, str]]:
     return out
 
 
+def _span_panels(result) -> list[tuple[str, int | None, str]]:
+    """(channel, column, panel title) of each recorded span node's transverse displacement (the
+    hybrid model's; by default each span's middle node)."""
+    return [("node_displacements_m", j, f"span {name} transverse")
+            for j, name in enumerate(result.columns.get("node_displacements_m", []))]
+
+
 def _grid(n: int, ncols: int = 3):
     ncols = min(ncols, n)
     nrows = math.ceil(n / ncols)
@@ -54,10 +61,10 @@ def _finish(fig, axes, used: int, title: str, path) -> None:
     save(fig, path, top_in=0.45 if title else None)
 
 
-def plot_order_maps(result, path, *, title: str = "") -> None:
+def plot_order_maps(result, path, *, title: str = "", panels=None) -> None:
     """Order amplitude (colour, channel units) against speed (rpm) and crank order, one panel per
-    channel (arm angle, each span tension)."""
-    panels = _panels(result)
+    channel (arm angle, each span tension; or ``panels``)."""
+    panels = _panels(result) if panels is None else panels
     nrows, ncols = _grid(len(panels))
     fig, axes = subplots(nrows, ncols, figsize=(4.2 * ncols, 2.8 * nrows), squeeze=False)
     axes = axes.ravel()
@@ -76,10 +83,10 @@ def plot_order_maps(result, path, *, title: str = "") -> None:
     _finish(fig, axes, len(panels), title, path)
 
 
-def plot_envelopes(result, path, *, title: str = "") -> None:
+def plot_envelopes(result, path, *, title: str = "", panels=None) -> None:
     """Min, mean and max over the cycle against speed (rpm), one panel per channel (arm angle,
-    each span tension); speeds whose status is not ok are shaded."""
-    panels = _panels(result)
+    each span tension; or ``panels``); speeds whose status is not ok are shaded."""
+    panels = _panels(result) if panels is None else panels
     nrows, ncols = _grid(len(panels))
     fig, axes = subplots(nrows, ncols, figsize=(4.2 * ncols, 2.6 * nrows), squeeze=False)
     axes = axes.ravel()
@@ -146,12 +153,18 @@ def plot_hub_loci(result, path, *, title: str = "") -> None:
 
 
 def plot_all(result, out: Path, *, title: str = "") -> list[Path]:
-    """Write order_maps.png, envelopes.png, slip_margins.png (with friction coefficients) and
-    hub_loci.png to ``out``; returns their paths."""
+    """Write order_maps.png, envelopes.png, slip_margins.png (with friction coefficients),
+    hub_loci.png and, for the hybrid model, span_vibration_maps.png and span_vibration.png (each
+    span's middle transverse displacement) to ``out``; returns their paths."""
     out = Path(out)
     paths = [out / "order_maps.png", out / "envelopes.png"]
     plot_order_maps(result, paths[0], title=title)
     plot_envelopes(result, paths[1], title=title)
+    spans = _span_panels(result)
+    if spans:
+        paths += [out / "span_vibration_maps.png", out / "span_vibration.png"]
+        plot_order_maps(result, paths[-2], title=title, panels=spans)
+        plot_envelopes(result, paths[-1], title=title, panels=spans)
     if plot_slip_margins(result, out / "slip_margins.png"):
         paths.append(out / "slip_margins.png")
     plot_hub_loci(result, out / "hub_loci.png")

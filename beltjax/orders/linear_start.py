@@ -23,17 +23,19 @@ import jax
 import jax.numpy as jnp
 
 
-def linear_periodic_start(f, y0, period, samples: int, jacobian_samples: int = 8):
+def linear_periodic_start(f, y0, period, samples: int, jacobian_samples: int = 8, harmonics: int | None = None):
     """The state at t = 0 (y0's units) of the periodic response of ``f`` (f(t, y, args), the
     transient's vector field) linearised about ``y0`` (the operating point), for an excitation
     that repeats every ``period`` (s); b(t) = f(t, y0) is sampled at ``samples`` points of the
-    cycle, the Jacobian averaged over ``jacobian_samples`` of them.  Falls back to ``y0`` where
-    the result is not finite (a singular linearisation)."""
+    cycle, the Jacobian averaged over ``jacobian_samples`` of them; the response to the first
+    ``harmonics`` harmonics of the cycle (default all that the samples resolve).  Falls back to
+    ``y0`` where the result is not finite (a singular linearisation)."""
     ts = period * jnp.arange(samples) / samples
     b = jax.vmap(lambda t: f(t, y0, None))(ts)  # (K, N)
     tj = period * jnp.arange(jacobian_samples) / jacobian_samples
     A = jnp.mean(jax.vmap(lambda t: jax.jacfwd(lambda y: f(t, y, None))(y0))(tj), axis=0)
-    B = jnp.fft.rfft(b, axis=0)[1 : (samples + 1) // 2] / samples  # (H, N): b(t) ~ sum_k 2 Re(B_k e^{i k w t}), no Nyquist term
+    top = (samples + 1) // 2 if harmonics is None else min(harmonics + 1, (samples + 1) // 2)
+    B = jnp.fft.rfft(b, axis=0)[1:top] / samples  # (H, N): b(t) ~ sum_k 2 Re(B_k e^{i k w t}), no Nyquist term
     w = 2.0 * jnp.pi / period * jnp.arange(1, B.shape[0] + 1)
     eye = jnp.eye(y0.shape[0])
     Y = jnp.linalg.solve(1j * w[:, None, None] * eye - A, B[..., None])[..., 0]  # (H, N)

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from beltjax import drive, friction, parameters, schema, validate
+from beltjax.drive import belt_slip
 from beltjax.errors import BeltjaxError
 from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, METHODS, SOLVERS, STARTS, Settings, cycle_revolutions,
                                    for_scene, steady_case)
@@ -80,8 +81,8 @@ def fallback_passes(method: str, settle_s: float) -> list[tuple[float, str]]:
 def check(scene: Scene, rpm) -> None:
     """Refuse (:class:`OrdersError`) what has no periodic steady state in crank angle: a drive
     pulley that is not driven, a run-up, excitation at a fixed frequency (Hz) or a crank trace
-    against time, the hybrid fidelity, loads that switch on or off or vary at a fixed frequency, span loads; speeds
-    that are not positive and finite."""
+    against time, loads that switch on or off or vary at a fixed frequency, span loads, the hybrid model's transient
+    with ``belt_slip``; speeds that are not positive and finite."""
     rpm = np.asarray(rpm, dtype=float)
     if rpm.ndim != 1 or rpm.size == 0:
         raise OrdersError("rpm: give at least one speed", "rpm")
@@ -94,10 +95,8 @@ def check(scene: Scene, rpm) -> None:
         validate.speeds(rpm, "rpm", "drive.rpm")  # finite, in the accepted range of a drive speed
     except BeltjaxError as exc:
         raise OrdersError(str(exc), exc.key) from None
-    if drive.spans_of(scene).independent:
-        raise OrdersError("model.fidelity: a response over speed runs the rotational model (its adaptive explicit "
-                          "steps); give fidelity = \"rotational\", or run the hybrid model's transient with "
-                          "beltjax simulate at chosen speeds", "model.fidelity")
+    if refused := belt_slip.transient_check(scene):
+        raise OrdersError(f"{refused[0]}: {refused[1]}", refused[0])
     d = scene.route.order[drive.drive_pulley(scene)]
     if not scene.pulley(d).driven:  # (an isolated crank's rim is free, its hub driven)
         raise OrdersError(f"pulley {d!r}: a response over speed needs a driven drive pulley (driven = true): "
@@ -133,6 +132,17 @@ def check(scene: Scene, rpm) -> None:
                           "span_load")
 
 
+def check_batched(scene: Scene, what: str) -> None:
+    """Refuse (:class:`OrdersError`, key ``model.fidelity``) the hybrid model where steady states
+    run in vmapped batches or are differentiated (``what``: a sweep's ``response`` output, the
+    objective ``arm_motion``): its implicit step in a vmapped batch forms its Jacobian at every
+    step (:func:`_batch`), and a gradient would go back through thousands of them."""
+    if drive.spans_of(scene).massive:
+        raise OrdersError(f"model.fidelity: {what} runs the rotational model (fidelity = \"rotational\"); the "
+                          "hybrid model's response over speed runs one speed at a time with beltjax orders",
+                          "model.fidelity")
+
+
 def over_speed(scene: Scene, values: dict, rpm, settle_s, settings: Settings) -> dict:
     """:func:`~beltjax.orders.steady.steady_case` at every speed of ``rpm`` (S,) (rev/min), as one
     pure, vmapped function of the parameter ``values`` {path: value}: differentiable (``jax.grad``;
@@ -144,12 +154,21 @@ def over_speed(scene: Scene, values: dict, rpm, settle_s, settings: Settings) ->
 
 
 @functools.cache
-def _batch(settings: Settings, keys: tuple[str, ...]) -> Callable:
-    """jit(vmap(steady_case)) over (values (B, len(keys)), rpm (B,), settle_s (B,)); one per settings."""
+def _batch(settings: Settings, keys: tuple[str, ...], single: bool = False) -> Callable:
+    """jit(vmap(steady_case)) over (values (B, len(keys)), rpm (B,), settle_s (B,)); one per settings.
+    ``single``: batches of one, run without vmap (a vmapped branch runs both sides of every
+    ``lax.cond``: the hybrid model's implicit step would form its Jacobian at every step; measured
+    on the eight-pulley drive at 4 elements per span, one speed, 2.3 s without vmap and 183 s in a
+    vmapped batch of one, the same cycle to 1e-14; the rotational shooting is unchanged by it, 30
+    speeds in 2.00 s and 1.93 s, the same cycles to 1e-10: benchmarks/bench_orders_hybrid.py
+    --vmap-check)."""
 
     def one(scene, x, rpm, settle):
         return steady_case(scene, dict(zip(keys, x)), rpm, settle, settings)
 
+    if single:
+        return jax.jit(lambda scene, x, rpm, settle: jax.tree_util.tree_map(
+            lambda v: v[None], one(scene, x[0], rpm[0], settle[0])))
     return jax.jit(jax.vmap(one, in_axes=(None, 0, 0, 0)))
 
 
@@ -171,14 +190,15 @@ def fallback_device(n: int):
         return None
 
 
-def default_chunk(n: int, method: str = "shooting") -> int:
+def default_chunk(n: int, method: str = "shooting", hybrid: bool = False) -> int:
     """Speeds per compiled batch: all of them on an accelerator; on a CPU one at a time for the
     shooting (a batch runs in lock-step, and its variational equations cost in proportion to the
     batch: on the eight-pulley drive 100 speeds took 10.4 s one by one, 17.4 s in batches of 25,
-    benchmarks/bench_orders.py), up to 32 for the settling transient (the chunks give progress)."""
+    benchmarks/bench_orders.py) and for the hybrid model (its fixed steps cost in proportion to the
+    batch too), up to 32 for the settling transient (the chunks give progress)."""
     if jax.default_backend() != "cpu":
         return max(1, n)
-    if method == "shooting":
+    if method == "shooting" or hybrid:
         return 1
     return max(1, -(-n // -(-n // 32)))  # chunks of at most 32, as even as can be (less padding)
 
@@ -285,10 +305,12 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
                           f"(now {settings.samples}): raise samples or lower max_order", "max_order")
     keys = tuple(sorted(values))
     x = np.asarray([[float(values[k]) for k in keys]], dtype=float)
-    size = chunk or default_chunk(rpm.size, settings.method)
+    hybrid = drive.spans_of(scene).massive
+    size = chunk or default_chunk(rpm.size, settings.method, hybrid)
 
-    def run(fn, speeds, settle, size=size):
+    def run(batch, speeds, settle, size=size):
         parts, done = [], 0
+        fn = batch(single=size == 1)
         for a in range(0, speeds.size, size):
             r = speeds[a : a + size]
             pad = np.concatenate([r, np.full(size - r.size, r[-1])])
@@ -300,7 +322,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     t0 = time.perf_counter()
-    out = run(_batch(settings, keys), rpm, settle_s)
+    out = run(functools.partial(_batch, settings, keys), rpm, settle_s)
     # the speeds that had not settled: a shooting that did not converge to an attracting cycle runs
     # the settling transient, and a transient that had not settled runs again RETRY_FACTOR x longer
     rerun = np.zeros(rpm.size, dtype=bool)
@@ -314,8 +336,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
             used[i] = f"{method} {time_s:g} s"
         host = fallback_device(retry.size)
         with jax.default_device(host) if host is not None else contextlib.nullcontext():
-            again = run(_batch(dataclasses.replace(settings, method=method), keys), rpm[retry], time_s,
-                        retry.size if host is not None else chunk or default_chunk(retry.size, method))  # host: 1 batch
+            again = run(functools.partial(_batch, dataclasses.replace(settings, method=method), keys), rpm[retry],
+                        time_s, retry.size if host is not None else chunk or default_chunk(retry.size, method, hybrid))
         for k in out:
             if k not in ("shooting_iterations", "shooting_cycle_steps", "floquet_multiplier"):  # (why it gave up)
                 out[k][retry] = again[k]

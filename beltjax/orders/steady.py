@@ -9,7 +9,9 @@ order of the scene's ``[[fluctuation]]`` follows the speed (its frequency is ord
 The excitation cycle is the least whole number of crank revolutions over which every order
 repeats (1 for whole orders, 2 with half orders: :func:`cycle_revolutions`).  Both methods run
 the scene's equations (:func:`beltjax.transient.vector_field`) with an adaptive explicit pair
-(Dopri8, the rotational model's default), and both start on the periodic response of the drive
+(Dopri8, the rotational model's default; the hybrid model settles with its own implicit fixed
+step and measures its settling on the outputs: :class:`Settings`, :func:`_channel_settling`),
+and both start on the periodic response of the drive
 linearised about the operating point (:mod:`beltjax.orders.linear_start`; ``Settings.start =
 "operating_point"`` starts at rest, as a plain transient does).  Shooting then iterates on one
 cycle and records the cycle from its fixed point.  The settling transient (``Settings.method =
@@ -38,17 +40,19 @@ from beltjax.drive.couplings import isolator_wind_up
 from beltjax.drive import belt_slip
 from beltjax.orders import shooting
 from beltjax.orders.linear_start import linear_periodic_start
-from beltjax.transient import start_vector, vector_field
+from beltjax.transient import default_dt, default_solver, solver_of, start_vector, vector_field
 from beltjax.transient_outputs import _outputs_one
 
 #: the transient channels reduced over the cycle (those a scene has; units: transient_outputs.UNITS)
 CHANNELS = ("arm_angle_deg", "span_tensions_N", "hub_force_magnitudes_N", "pulley_speeds_rpm", "drive_torques_Nm",
             "spring_moment_Nm", "isolator_moment_Nm", "rotor_speeds_rpm", "decoupler_moments_Nm", "slip_speeds_m_s",
-            "friction_power_W")
+            "friction_power_W", "node_displacements_m")
 #: the statistics of each channel over the recorded cycle
 STATS = ("mean", "min", "max", "p2p")
 #: the adaptive solvers a steady state may use
 SOLVERS = ("dopri8", "tsit5", "kvaerno5")
+#: the fixed-step solvers a hybrid scene may name (:func:`for_scene`)
+FIXED_STEP = ("generalized_alpha",)
 #: where the settling transient or the shooting may start (:class:`Settings`)
 STARTS = ("linear", "operating_point")
 #: how the periodic steady state is found (:class:`Settings`)
@@ -77,7 +81,11 @@ class Settings:
     for a drive whose state drifts) or ``"settle"`` (a transient of at least ``settle_s``);
     gradients: False where no derivative is taken (a response over speed, a sweep): the shooting
     saves its implicit-function cycle and may stop on Newton's prediction
-    (:func:`beltjax.orders.shooting.periodic_orbit`); differentiating such a case raises."""
+    (:func:`beltjax.orders.shooting.periodic_orbit`); differentiating such a case raises.
+    The hybrid model (:func:`for_scene`) settles with its scene's transient solver
+    (``[simulation] solver``, generalized-alpha by default) and, for that fixed-step solver, a step
+    of at most ``dt`` (s, the scene's ``dt_s``, default 1e-4) shortened so that every recorded
+    sample falls on a step (the solver's outputs between steps are linear interpolations)."""
 
     samples: int = 128
     max_order: float = 8.0
@@ -90,6 +98,7 @@ class Settings:
     start: str = "linear"
     method: str = "shooting"
     gradients: bool = True
+    dt: float | None = None
 
     @property
     def harmonics(self) -> int:
@@ -121,6 +130,11 @@ def for_scene(scene: Scene, settings: Settings | None = None) -> Settings:
     settings = dataclasses.replace(settings or Settings(), revolutions=cycle_revolutions(scene), top_order=top)
     if belt_slip.n_states(scene):  # creeping pulleys' angles and the slip states drift: no fixed point to shoot for
         settings = dataclasses.replace(settings, method="settle")
+    if drive.spans_of(scene).massive:  # the hybrid model: stiff (axial span modes of kHz), its own implicit solver;
+        # shooting would carry the variational equations of every span coordinate
+        name = default_solver(scene)
+        settings = dataclasses.replace(settings, method="settle", solver=name,
+                                       dt=default_dt(scene) if name in FIXED_STEP else None)
     return settings
 
 
@@ -149,6 +163,26 @@ def _settling(y_early, y_late, n: int, dt, creeping=None):
     if creeping is not None:
         dy = dy.at[:, :n].add(-creeping * dt * jnp.mean(y_late[:-1, n:], axis=0))
     return shooting.relative_change(dy, y_late, n)
+
+
+def _channel_settling(early: dict, late: dict):
+    """Largest change of a reported channel (:data:`CHANNELS`, and the hub forces) between two
+    phase-aligned cycles (K, ...) against that channel's largest range over the late cycle (-;
+    a channel that does not swing against 1e-9 of its size).  The hybrid model's settling
+    residual: its state holds the span coordinates' rates, where a free vibration of kHz too small
+    to show in any output swings against ranges orders below the bodies' (measured on the
+    tensioner bench at 2 elements per span, 2 s from the linear start: 0.13 in the state, 6e-4
+    in the channels)."""
+    res = jnp.asarray(0.0)
+    for name in (*CHANNELS, "hub_forces_N"):
+        if name not in late or late[name].size == 0:
+            continue
+        a, b = early[name], late[name]
+        span = jnp.max(b.max(axis=0) - b.min(axis=0))
+        least = 1e-9 * jnp.max(jnp.abs(b))
+        change = jnp.max(jnp.abs(b - a))
+        res = jnp.maximum(res, jnp.where(change > 0, change / jnp.maximum(span, least), 0.0))
+    return res
 
 
 def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, solved=None) -> dict:
@@ -198,12 +232,20 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     if settings.method == "shooting" and not settings.gradients:
         sc, inst, rm = shooting.refuse_tangents((sc, inst, rm))
     f = vector_field(sc, inst, rm)
-    if settings.start == "linear":
-        y0 = linear_periodic_start(f, y0, period, K)
+    hybrid = drive.spans_of(sc).massive
+    if settings.start == "linear":  # (the hybrid's: the excited orders only, each a dense solve of its 2n states)
+        y0 = linear_periodic_start(f, y0, period, K, 2, settings.harmonics) if hybrid else \
+            linear_periodic_start(f, y0, period, K)
     term = diffrax.ODETerm(f)
-    dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
-    ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
-    solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
+    if settings.solver in FIXED_STEP:  # the hybrid model's implicit fixed step, whole steps per sample
+        solver, ctrl = solver_of(dataclasses.replace(sc, simulation=dataclasses.replace(sc.simulation,
+                                                                                        solver=settings.solver)))
+        dt0 = period / (K * jnp.ceil(period / (K * settings.dt) - 1e-9))
+    else:
+        dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
+        ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
+        solver = {"dopri8": diffrax.Dopri8, "kvaerno5": diffrax.Kvaerno5, "tsit5": diffrax.Tsit5}[settings.solver]()
+        dt0 = jnp.minimum(1e-4, period / 64)
     if settings.method == "shooting":  # y0 <- the periodic state, then one cycle from it
         y_orbit, shot = shooting.periodic_orbit(f, vector_field(*shooting.held((sc, inst, rm))), y0, period, phase[:-1],
                                                 solver, ctrl, settings.max_steps, n, settings.gradients)
@@ -215,17 +257,23 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         t_early = jnp.floor(cycles / 2) * period
         ts = jnp.concatenate([t_early + phase, t_late + phase])
     with runtime.cacheable():  # kept by the persistent compilation cache
-        sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=ts[-1], dt0=jnp.minimum(1e-4, period / 64), y0=y0,
+        sol = diffrax.diffeqsolve(term, solver, t0=0.0, t1=ts[-1], dt0=dt0, y0=y0,
                                   saveat=diffrax.SaveAt(ts=ts), stepsize_controller=ctrl,
                                   max_steps=settings.max_steps, throw=False)
     ys = sol.ys
     late = ys[-(K + 1) :]  # the recorded cycle (and its end)
     t_rec = ts[-(K + 1) : -1]
     M_full = drive.full_mass_matrix(sc, inst)
-    chans = jax.vmap(lambda t, y: _outputs_one(t, y, sc, inst, M_full))(t_rec, late[:-1])
+    settle_on_channels = hybrid and settings.method == "settle"  # both cycles' outputs: _channel_settling
+    rec_t, rec_y = (jnp.concatenate([ts[:K], t_rec]), jnp.concatenate([ys[:K], late[:-1]])) if settle_on_channels \
+        else (t_rec, late[:-1])
+    chans = jax.vmap(lambda t, y: _outputs_one(t, y, sc, inst, M_full))(rec_t, rec_y)
     free = drive.is_free(sc)
     if "drive_torques_Nm" in chans:
         chans["drive_torques_Nm"] = chans["drive_torques_Nm"][:, [i for i, f in enumerate(free) if not f]]
+    if settle_on_channels:
+        early = {k: v[:K] for k, v in chans.items()}
+        chans = {k: v[K:] for k, v in chans.items()}
     out: dict = {}
     for name in CHANNELS:
         if name not in chans or chans[name].shape[1:] == (0,):
@@ -252,7 +300,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         creeping = None
         if belt_slip.n_states(sc):  # the slip states drift, and so do the creeping pulleys' angles
             creeping = jnp.zeros(n).at[: belt_slip.rotations(sc)].set(1.0)
-        out["settling"] = _settling(ys[: K + 1, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
+        out["settling"] = _channel_settling(early, chans) if settle_on_channels else \
+            _settling(ys[: K + 1, : 2 * n], late[:, : 2 * n], n, t_late - t_early, creeping)
         out["shooting_iterations"], out["floquet_multiplier"] = jnp.asarray(0.0), jnp.asarray(jnp.nan)
         out["shooting_cycle_steps"] = jnp.zeros(shooting.MAX_ITERATIONS)
     out["converged"] = conv

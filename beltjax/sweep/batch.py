@@ -368,13 +368,14 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
         from beltjax.orders import OrdersError, Settings, check, fallback_device, fallback_passes, for_scene
-        from beltjax.orders.run import settle_problem
+        from beltjax.orders.run import check_batched, settle_problem
 
         if problem := settle_problem(settle_s):
             raise SweepError(problem, "settle_s")
 
         try:
             check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
+            check_batched(scene, "a sweep's response output")
         except OrdersError as exc:
             raise SweepError(str(exc), "outputs") from None
     opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track,
