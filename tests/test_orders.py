@@ -390,7 +390,7 @@ def test_command_writes_its_files(tmp_path, capsys):
         assert (out / name).stat().st_size > 0
 
 
-def test_hybrid_response_is_its_transient_and_agrees_with_the_rotational():
+def test_hybrid_response_is_its_transient_and_agrees_with_the_rotational(tmp_path):
     """The hybrid model (2 elements per span) settles with its own fixed-step generalized-alpha, a
     step of at most the scene's 1e-4 s shortened to whole steps per sample: its recorded cycle is
     the plain hybrid transient (beltjax simulate at that step) at the same times, to the implicit
@@ -436,6 +436,11 @@ def test_hybrid_response_is_its_transient_and_agrees_with_the_rotational():
     assert res.columns["node_displacements_m"] == [f"{s}:1" for s in ("crank-tensioner", "tensioner-alternator",
                                                                       "alternator-crank")]
     assert float(np.max(res.channel("node_displacements_m", "p2p"))) > 1e-5  # a span at the arm swings
+    from beltjax.orders import command
+
+    names = {p.name for p in command.write(res, tmp_path, "hybrid")}
+    assert {"span_vibration_maps.png", "span_vibration.png", "orders.csv"} <= names
+    assert "node_displacements_m[crank-tensioner:1]:p2p" in (tmp_path / "orders.csv").read_text().splitlines()[0]
     rot = orders.response_over_speed(loads_scene(SCENE), [rpm], settle_s=0.3, settings=settings)
     for name in ("span_tensions_N", "arm_angle_deg", "hub_force_magnitudes_N"):
         a, b = res.channel(name, "mean")[0], rot.channel(name, "mean")[0]

@@ -12,6 +12,8 @@ from beltjax.plotting import colormap, literal, literal_wrapped, save, subplots
 
 #: speeds drawn in the hub-load loci
 LOCI_SPEEDS = 5
+#: a span node whose transverse displacement stays below this (m) is drawn flat and titled "still"
+STILL_M = 1e-9
 
 
 def _panels(result) -> list[tuple[str, int | None, str]]:
@@ -97,6 +99,9 @@ def plot_envelopes(result, path, *, title: str = "", panels=None) -> None:
         ax.plot(result.rpm, mean, color="C0", lw=1.2, label="mean")
         if ch == "span_tensions_N":
             ax.axhline(0.0, color="k", lw=0.6)
+        if ch == "node_displacements_m" and np.nanmax(np.abs(np.concatenate([lo, hi])), initial=0.0) < STILL_M:
+            ax.set_ylim(-1e-3, 1e-3)  # a straight span (round-off only): drawn flat on a millimetre scale
+            name = f"{name}, still"
         ax.set_title(literal(name), fontsize=9)
         ax.set_xlabel("crank speed [rpm]")
         ax.set_ylabel(f"[{result.units[ch]}]")

@@ -191,14 +191,17 @@ def fallback_device(n: int):
 
 
 def default_chunk(n: int, method: str = "shooting", hybrid: bool = False) -> int:
-    """Speeds per compiled batch: all of them on an accelerator; on a CPU one at a time for the
-    shooting (a batch runs in lock-step, and its variational equations cost in proportion to the
-    batch: on the eight-pulley drive 100 speeds took 10.4 s one by one, 17.4 s in batches of 25,
-    benchmarks/bench_orders.py) and for the hybrid model (its fixed steps cost in proportion to the
-    batch too), up to 32 for the settling transient (the chunks give progress)."""
+    """Speeds per compiled batch: one at a time for the hybrid model on every backend (in a vmapped
+    batch its implicit step forms its Jacobian at every step: :func:`_batch`); all of them on an
+    accelerator; on a CPU one at a time for the shooting (a batch runs in lock-step, and its
+    variational equations cost in proportion to the batch: on the eight-pulley drive 100 speeds
+    took 10.4 s one by one, 17.4 s in batches of 25, benchmarks/bench_orders.py), up to 32 for the
+    settling transient (the chunks give progress)."""
+    if hybrid:
+        return 1
     if jax.default_backend() != "cpu":
         return max(1, n)
-    if method == "shooting" or hybrid:
+    if method == "shooting":
         return 1
     return max(1, -(-n // -(-n // 32)))  # chunks of at most 32, as even as can be (less padding)
 
@@ -337,7 +340,8 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         host = fallback_device(retry.size)
         with jax.default_device(host) if host is not None else contextlib.nullcontext():
             again = run(functools.partial(_batch, dataclasses.replace(settings, method=method), keys), rpm[retry],
-                        time_s, retry.size if host is not None else chunk or default_chunk(retry.size, method, hybrid))
+                        time_s, (chunk or default_chunk(retry.size, method, hybrid)) if host is None or hybrid
+                        else retry.size)  # the host: one batch (the hybrid model: one speed at a time)
         for k in out:
             if k not in ("shooting_iterations", "shooting_cycle_steps", "floquet_multiplier"):  # (why it gave up)
                 out[k][retry] = again[k]
