@@ -653,6 +653,28 @@ def test_gradient_over_speed_and_optimize_arm_motion():
         optimize.parse(bad, sc)
 
 
+def test_hybrid_settling_guards():
+    """The hybrid model's settling: a settling time whose fixed steps (the 4x re-run included) pass
+    the limit is refused naming settle_s before any work; a channel of round-off (a straight span's
+    transverse displacement) does not count as unsettled, a real change does."""
+    from beltjax.orders import OrdersError, steady
+
+    sc = loads_scene(SCENE.replace('fidelity = "rotational"', 'fidelity = "ancf"\nelements_per_span = 2'))
+    with pytest.raises(OrdersError, match="settle_s") as e:
+        orders.response_over_speed(sc, [600.0], settle_s=100.0)
+    assert e.value.key == "settle_s"
+    settings = orders.for_scene(sc, orders.Settings())
+    assert orders.run.fixed_steps(settings, [600.0], 1.0) == (10 + 1) * 128 * 8 + 8  # 11 cycles of 1e-4 -> 7.8e-5 s steps
+    rng = np.random.default_rng(0)
+    arm = np.sin(np.linspace(0, 2 * np.pi, 32))[:, None]
+    still = 1e-15 * rng.standard_normal((2, 32, 3))
+    early = {"arm_angle_deg": jnp.asarray(arm), "node_displacements_m": jnp.asarray(still[0])}
+    late = {"arm_angle_deg": jnp.asarray(arm * (1 + 1e-7)), "node_displacements_m": jnp.asarray(still[1])}
+    assert float(steady._channel_settling(early, late)) < 1e-5
+    late["node_displacements_m"] = late["node_displacements_m"].at[3, 1].add(1e-6)  # a span that moves
+    assert float(steady._channel_settling(early, late)) > 0.5
+
+
 def test_batched_and_differentiated_steady_states_refuse_the_hybrid():
     """A sweep's response output and the optimiser's arm_motion run steady states in vmapped
     batches and differentiate them: the hybrid model (one speed at a time with beltjax orders) is
@@ -666,3 +688,5 @@ def test_batched_and_differentiated_steady_states_refuse_the_hybrid():
             "objective": [{"kind": "arm_motion", "rpm": [500.0, 700.0]}]}
     with pytest.raises(optimize.OptimizeError, match="model.fidelity"):
         optimize.parse(spec, sc)
+    with pytest.raises(orders.OrdersError, match="model.fidelity"):
+        orders.over_speed(sc, {}, [600.0], 1.0, orders.for_scene(sc, orders.Settings()))

@@ -275,6 +275,12 @@ CASES = [
          "creep and gross slip dynamics asked of the hybrid model's transient",
          lambda d: ["orders", t200_slip(d), "--rpm", "600:800:100"],
          "model.effects", "rotational model's transient"),
+    case("orders-hybrid-settle-steps", "`orders --settle-s 100` of the hybrid eight-pulley drive",
+         "a settling time whose fixed steps, its 4x re-run included, pass the limit (hours of the hybrid model)",
+         lambda d: ["orders", write(d, "scene.toml", edit(FEAD, ('fidelity = "rotational"',
+                                                                 'fidelity = "ancf"\nelements_per_span = 2'))),
+                    "--rpm", "600:800:100", "--settle-s", "100"],
+         "settle_s", "fixed step"),
     case("orders-load-window", "`orders`: a `[[torque]]` with `t_end_s` (8-pulley drive)",
          "a load that switches off has no steady state",
          lambda d: ["orders", write(d, "scene.toml", FEAD + '\n[[torque]]\npulley = "alternator"\nmean_Nm = 1.0\n'

@@ -132,6 +132,21 @@ def check(scene: Scene, rpm) -> None:
                           "span_load")
 
 
+#: most fixed steps of one speed's settling transient (the hybrid model's: about 10 s per 1e4 steps
+#: at 8 elements per span on a 2-core CPU)
+MAX_FIXED_STEPS = 2_000_000
+
+
+def fixed_steps(settings: Settings, rpm, settle_s: float) -> int:
+    """The most steps (-) that one speed of ``rpm`` (rev/min) takes to settle for ``settle_s`` (s)
+    and record its cycles at the fixed step of :func:`~beltjax.orders.steady.steady_case` (at most
+    ``settings.dt``, whole steps per sample)."""
+    period = settings.revolutions * 60.0 / np.abs(np.asarray(rpm, dtype=float))
+    per_sample = np.ceil(period / (settings.samples * settings.dt) - 1e-9)
+    cycles = np.maximum(np.ceil(settle_s / period), 2.0) + 1.0
+    return int(np.max(cycles * settings.samples * per_sample)) + 8
+
+
 def check_batched(scene: Scene, what: str) -> None:
     """Refuse (:class:`OrdersError`, key ``model.fidelity``) the hybrid model where steady states
     run in vmapped batches or are differentiated (``what``: a sweep's ``response`` output, the
@@ -150,6 +165,7 @@ def over_speed(scene: Scene, values: dict, rpm, settle_s, settings: Settings) ->
     e.g. the largest arm motion over an idle band.  ``settings.revolutions`` and
     ``settings.top_order`` must be the scene's (:func:`~beltjax.orders.steady.for_scene`; see
     :func:`response_over_speed` for the checked, chunked entry point)."""
+    check_batched(scene, "over_speed")
     return jax.vmap(lambda r: steady_case(scene, values, r, settle_s, settings))(jnp.asarray(rpm))
 
 
@@ -309,6 +325,15 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     keys = tuple(sorted(values))
     x = np.asarray([[float(values[k]) for k in keys]], dtype=float)
     hybrid = drive.spans_of(scene).massive
+    if hybrid:  # one speed at a time (default_chunk), and room for the longest pass's fixed steps
+        chunk = 1
+        if settings.dt is not None:
+            steps = fixed_steps(settings, rpm, settle_s * RETRY_FACTOR)
+            if steps > MAX_FIXED_STEPS:
+                raise OrdersError(f"settle_s: {settle_s:g} s (and a re-run {RETRY_FACTOR:g}x longer) at "
+                                  f"{settings.samples} samples per cycle needs {steps} steps of the hybrid model's "
+                                  f"fixed step, more than {MAX_FIXED_STEPS}: shorten settle_s or lower samples", "settle_s")
+            settings = dataclasses.replace(settings, max_steps=max(settings.max_steps, steps))
     size = chunk or default_chunk(rpm.size, settings.method, hybrid)
 
     def run(batch, speeds, settle, size=size):
@@ -368,6 +393,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         floquet_multipliers=[None if not np.isfinite(m) else float(m) for m in out["floquet_multiplier"]],
         revolutions_per_cycle=settings.revolutions,
         samples_per_cycle=settings.samples, rtol=settings.rtol, atol=settings.atol, solver=settings.solver,
+        dt_s=settings.dt,
         steps=out["steps"].astype(int).tolist(), t_end_s=out["t_end_s"].tolist(), wall_s=wall, chunk=size,
         values={k: float(v) for k, v in values.items()},
     )

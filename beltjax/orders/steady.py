@@ -41,12 +41,15 @@ from beltjax.drive import belt_slip
 from beltjax.orders import shooting
 from beltjax.orders.linear_start import linear_periodic_start
 from beltjax.transient import default_dt, default_solver, solver_of, start_vector, vector_field
-from beltjax.transient_outputs import _outputs_one
+from beltjax.transient_outputs import UNITS, _outputs_one
 
 #: the transient channels reduced over the cycle (those a scene has; units: transient_outputs.UNITS)
 CHANNELS = ("arm_angle_deg", "span_tensions_N", "hub_force_magnitudes_N", "pulley_speeds_rpm", "drive_torques_Nm",
             "spring_moment_Nm", "isolator_moment_Nm", "rotor_speeds_rpm", "decoupler_moments_Nm", "slip_speeds_m_s",
             "friction_power_W", "node_displacements_m")
+#: the least swing (channel units) a channel's change counts against in the hybrid model's settling
+#: residual (:func:`_channel_settling`): metres and m/s 1e-9, any other unit 1e-6
+STILL = {"m": 1e-9, "m/s": 1e-9}
 #: the statistics of each channel over the recorded cycle
 STATS = ("mean", "min", "max", "p2p")
 #: the adaptive solvers a steady state may use
@@ -82,7 +85,8 @@ class Settings:
     gradients: False where no derivative is taken (a response over speed, a sweep): the shooting
     saves its implicit-function cycle and may stop on Newton's prediction
     (:func:`beltjax.orders.shooting.periodic_orbit`); differentiating such a case raises.
-    The hybrid model (:func:`for_scene`) settles with its scene's transient solver
+    The hybrid model (:func:`for_scene`, which replaces ``method``, ``solver`` and ``dt``)
+    settles with its scene's transient solver
     (``[simulation] solver``, generalized-alpha by default) and, for that fixed-step solver, a step
     of at most ``dt`` (s, the scene's ``dt_s``, default 1e-4) shortened so that every recorded
     sample falls on a step (the solver's outputs between steps are linear interpolations)."""
@@ -168,7 +172,8 @@ def _settling(y_early, y_late, n: int, dt, creeping=None):
 def _channel_settling(early: dict, late: dict):
     """Largest change of a reported channel (:data:`CHANNELS`, and the hub forces) between two
     phase-aligned cycles (K, ...) against that channel's largest range over the late cycle (-;
-    a channel that does not swing against 1e-9 of its size).  The hybrid model's settling
+    a channel that does not swing against 1e-9 of its size, and at least :data:`STILL` in its
+    units: a straight span's transverse displacement is round-off).  The hybrid model's settling
     residual: its state holds the span coordinates' rates, where a free vibration of kHz too small
     to show in any output swings against ranges orders below the bodies' (measured on the
     tensioner bench at 2 elements per span, 2 s from the linear start: 0.13 in the state, 6e-4
@@ -179,7 +184,7 @@ def _channel_settling(early: dict, late: dict):
             continue
         a, b = early[name], late[name]
         span = jnp.max(b.max(axis=0) - b.min(axis=0))
-        least = 1e-9 * jnp.max(jnp.abs(b))
+        least = jnp.maximum(1e-9 * jnp.max(jnp.abs(b)), STILL.get(UNITS[name], 1e-6))
         change = jnp.max(jnp.abs(b - a))
         res = jnp.maximum(res, jnp.where(change > 0, change / jnp.maximum(span, least), 0.0))
     return res
@@ -240,7 +245,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     if settings.solver in FIXED_STEP:  # the hybrid model's implicit fixed step, whole steps per sample
         solver, ctrl = solver_of(dataclasses.replace(sc, simulation=dataclasses.replace(sc.simulation,
                                                                                         solver=settings.solver)))
-        dt0 = period / (K * jnp.ceil(period / (K * settings.dt) - 1e-9))
+        dt0 = period / (K * jnp.ceil(period / (K * (settings.dt or default_dt(sc))) - 1e-9))
     else:
         dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
         ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)

@@ -375,9 +375,12 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
 
         try:
             check(scene, [max(abs(float(parameters.get_value(scene, f"pulley.{dp}.speed_rpm"))), 1e-9)])
-            check_batched(scene, "a sweep's response output")
         except OrdersError as exc:
             raise SweepError(str(exc), "outputs") from None
+        try:
+            check_batched(scene, "a sweep's response output")
+        except OrdersError as exc:
+            raise SweepError(str(exc), exc.key) from None
     opts = _Options(outputs=outputs, modes=modes, gyro=effects_of(scene).moving_belt and moving, track=track,
                     response=for_scene(scene, Settings(gradients=False)) if "response" in outputs else None)
     post = functools.partial(sweep_modes.track_chunk, refs=refs, modes=modes) if track else (lambda r: r)
