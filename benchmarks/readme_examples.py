@@ -72,6 +72,10 @@ EXAMPLES: dict[str, tuple[str, dict[str, str]]] = {
                     {"order_maps.png": "orders_maps_fead_8pulley.png", "envelopes.png": "orders_envelopes_fead_8pulley.png",
                      "slip_margins.png": "orders_slip_margins_fead_8pulley.png",
                      "hub_loci.png": "orders_hub_loci_fead_8pulley.png"}),
+    "orders_fead_hybrid": ("orders scenes/fead_8pulley_hybrid.toml --rpm 600:1600:100",
+                           {"span_vibration.png": "orders_span_vibration_fead_8pulley_hybrid.png",
+                            "span_vibration_maps.png": "orders_span_vibration_maps_fead_8pulley_hybrid.png",
+                            "envelopes.png": "orders_envelopes_fead_8pulley_hybrid.png"}),
     "span_bench": ("span --length 0.67143 --tension 100.5 --EA 111190 --EI 0.034 --rhoA 0.12166 --elements 16",
                    {"span_modes.png": "span_modes_bench.png"}),
 }
