@@ -20,7 +20,7 @@ from beltjax import drive, friction, parameters, schema, validate
 from beltjax.drive import belt_slip
 from beltjax.errors import BeltjaxError
 from beltjax.orders.steady import (CHANNELS, MAX_REVOLUTIONS, METHODS, SOLVERS, STARTS, Settings, cycle_revolutions,
-                                   for_scene, steady_case)
+                                   fixed_step, for_scene, settle_cycles, steady_case)
 from beltjax.scene import Scene
 from beltjax.transient_outputs import UNITS, _columns
 
@@ -142,9 +142,8 @@ def fixed_steps(settings: Settings, rpm, settle_s: float) -> int:
     and record its cycles at the fixed step of :func:`~beltjax.orders.steady.steady_case` (at most
     ``settings.dt``, whole steps per sample)."""
     period = settings.revolutions * 60.0 / np.abs(np.asarray(rpm, dtype=float))
-    per_sample = np.ceil(period / (settings.samples * settings.dt) - 1e-9)
-    cycles = np.maximum(np.ceil(settle_s / period), 2.0) + 1.0
-    return int(np.max(cycles * settings.samples * per_sample)) + 8
+    steps = (settle_cycles(settle_s, period) + 1.0) * period / fixed_step(period, settings.samples, settings.dt)
+    return int(np.round(np.max(steps))) + 8
 
 
 def check_batched(scene: Scene, what: str) -> None:
@@ -206,15 +205,13 @@ def fallback_device(n: int):
         return None
 
 
-def default_chunk(n: int, method: str = "shooting", hybrid: bool = False) -> int:
-    """Speeds per compiled batch: one at a time for the hybrid model on every backend (in a vmapped
-    batch its implicit step forms its Jacobian at every step: :func:`_batch`); all of them on an
-    accelerator; on a CPU one at a time for the shooting (a batch runs in lock-step, and its
-    variational equations cost in proportion to the batch: on the eight-pulley drive 100 speeds
-    took 10.4 s one by one, 17.4 s in batches of 25, benchmarks/bench_orders.py), up to 32 for the
-    settling transient (the chunks give progress)."""
-    if hybrid:
-        return 1
+def default_chunk(n: int, method: str = "shooting") -> int:
+    """Speeds per compiled batch: all of them on an accelerator; on a CPU one at a time for the
+    shooting (a batch runs in lock-step, and its variational equations cost in proportion to the
+    batch: on the eight-pulley drive 100 speeds took 10.4 s one by one, 17.4 s in batches of 25,
+    benchmarks/bench_orders.py), up to 32 for the settling transient (the chunks give progress).
+    The hybrid model runs one speed at a time on every backend (:func:`response_over_speed`: in a
+    vmapped batch its implicit step forms its Jacobian at every step, :func:`_batch`)."""
     if jax.default_backend() != "cpu":
         return max(1, n)
     if method == "shooting":
@@ -325,7 +322,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     keys = tuple(sorted(values))
     x = np.asarray([[float(values[k]) for k in keys]], dtype=float)
     hybrid = drive.spans_of(scene).massive
-    if hybrid:  # one speed at a time (default_chunk), and room for the longest pass's fixed steps
+    if hybrid:  # one speed at a time (default_chunk, _batch), and room for the longest pass's fixed steps
         chunk = 1
         if settings.dt is not None:
             steps = fixed_steps(settings, rpm, settle_s * RETRY_FACTOR)
@@ -334,7 +331,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
                                   f"{settings.samples} samples per cycle needs {steps} steps of the hybrid model's "
                                   f"fixed step, more than {MAX_FIXED_STEPS}: shorten settle_s or lower samples", "settle_s")
             settings = dataclasses.replace(settings, max_steps=max(settings.max_steps, steps))
-    size = chunk or default_chunk(rpm.size, settings.method, hybrid)
+    size = chunk or default_chunk(rpm.size, settings.method)
 
     def run(batch, speeds, settle, size=size):
         parts, done = [], 0
@@ -365,7 +362,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         host = fallback_device(retry.size)
         with jax.default_device(host) if host is not None else contextlib.nullcontext():
             again = run(functools.partial(_batch, dataclasses.replace(settings, method=method), keys), rpm[retry],
-                        time_s, (chunk or default_chunk(retry.size, method, hybrid)) if host is None or hybrid
+                        time_s, (chunk or default_chunk(retry.size, method)) if host is None or hybrid
                         else retry.size)  # the host: one batch (the hybrid model: one speed at a time)
         for k in out:
             if k not in ("shooting_iterations", "shooting_cycle_steps", "floquet_multiplier"):  # (why it gave up)

@@ -169,6 +169,17 @@ def _settling(y_early, y_late, n: int, dt, creeping=None):
     return shooting.relative_change(dy, y_late, n)
 
 
+def fixed_step(period, samples: int, dt):
+    """The fixed step (s) of a settling transient of ``period`` (s) cycles: at most ``dt`` (s), a
+    whole number of steps per sample of the ``samples`` per cycle (numpy or JAX)."""
+    return period / (samples * jnp.ceil(period / (samples * dt) - 1e-9))
+
+
+def settle_cycles(settle_s, period):
+    """Whole cycles of ``period`` (s) before the recorded one: at least ``settle_s`` (s) and 2."""
+    return jnp.maximum(jnp.ceil(settle_s / period), 2.0)
+
+
 def _channel_settling(early: dict, late: dict):
     """Largest change of a reported channel (:data:`CHANNELS`, and the hub forces) between two
     phase-aligned cycles (K, ...) against that channel's largest range over the late cycle (-;
@@ -245,7 +256,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     if settings.solver in FIXED_STEP:  # the hybrid model's implicit fixed step, whole steps per sample
         solver, ctrl = solver_of(dataclasses.replace(sc, simulation=dataclasses.replace(sc.simulation,
                                                                                         solver=settings.solver)))
-        dt0 = period / (K * jnp.ceil(period / (K * (settings.dt or default_dt(sc))) - 1e-9))
+        dt0 = fixed_step(period, K, settings.dt or default_dt(sc))
     else:
         dtmax = ADAPTIVE_PERIOD_FRACTION * 60.0 / (jnp.abs(rpm) * settings.top_order)  # a quarter of the top order's period
         ctrl = diffrax.PIDController(rtol=settings.rtol, atol=settings.atol, dtmax=dtmax)
@@ -257,7 +268,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         y0 = jnp.where(shot["ok"] > 0.5, y_orbit, y0)  # no attracting cycle: a cycle from the start (flagged)
         ts = phase
     else:  # a transient of at least settle_s, two cycles recorded
-        cycles = jnp.maximum(jnp.ceil(settle_s / period), 2.0)
+        cycles = settle_cycles(settle_s, period)
         t_late = cycles * period
         t_early = jnp.floor(cycles / 2) * period
         ts = jnp.concatenate([t_early + phase, t_late + phase])
