@@ -5,7 +5,9 @@ drive.
 Run: ``python benchmarks/bench_orders_hybrid.py`` (about 10 min on a 2-core CPU); writes
 ``benchmarks/results/orders_hybrid.json``.  ``--elements 4,8`` (elements per span), ``--rpm
 700:1100:200`` (speeds, end included), ``--settle-s 0.5``; ``--vmap-check`` (about 10 min) only
-times one speed without vmap against a vmapped batch of one (``results/orders_hybrid_vmap.json``).
+times one speed without vmap against a vmapped batch of one (``results/orders_hybrid_vmap.json``);
+``--batch-check 8,64 --name gpu/orders_hybrid_batch`` (meant for a GPU) times one speed at a time
+against vmapped batches of those sizes, the same speeds (``results/<name>.json``).
 
 Each mesh: ``scenes/fead_8pulley.toml`` with ``fidelity = "ancf"``; the settling transient with the
 hybrid model's generalized-alpha (step at most 1e-4 s, shortened to whole steps per sample: 128
@@ -85,17 +87,73 @@ def vmap_check(info) -> None:
     print(f"wrote {_common.save_json('orders_hybrid_vmap', dict(machine=info, rows=rows))}")
 
 
+def batch_check(info, sizes: list[int], name: str, settle_s: float) -> None:
+    """The hybrid model at 4 elements per span: speeds one at a time (what ``beltjax orders`` runs)
+    against one vmapped batch of each size (at least 2) in ``sizes`` over 700-1000 rpm (where every speed is
+    ``ok``), compiled ahead and timed once each, the arm's peak to peak compared with the one-by-one runs.  On a
+    CPU a vmapped batch forms the implicit step's Jacobian at every step (:func:`vmap_check`); on a
+    GPU that cost may be shared by the batch.  Writes results/<name>.json."""
+    from beltjax import drive
+    from beltjax.orders import run as R
+    from beltjax.orders import steady
+
+    base = load_scene(SCENE)
+    sc = drive.canonical(dataclasses.replace(base, model=dataclasses.replace(base.model, fidelity="ancf",
+                                                                               elements_per_span=4)))
+    settings = dataclasses.replace(steady.for_scene(sc, None), gradients=False)
+    rows, one_by_one = [], {}
+    for b in sizes:
+        rpm = np.linspace(700.0, 1000.0, b)
+        settings_b = dataclasses.replace(settings, max_steps=max(settings.max_steps, R.fixed_steps(settings, rpm, settle_s)))
+        fn = R._batch(settings_b, (), False)
+        args = (sc, jax.numpy.zeros((b, 0)), jax.numpy.asarray(rpm), jax.numpy.full(b, settle_s))
+        t0 = time.perf_counter()
+        fn = fn.lower(*args).compile()
+        first = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        out = jax.block_until_ready(fn(*args))
+        timed = time.perf_counter() - t0
+        arm = np.asarray(out["arm_angle_deg:p2p"])
+        row = dict(batch=b, compile_s=first, timed_s=timed, speeds_per_s=b / timed,
+                   steps=np.asarray(out["steps"]).astype(int).tolist(), settling=np.asarray(out["settling"]).tolist())
+        print(f"vmapped batch of {b}: compile {first:.1f} s, timed {timed:.2f} s = {b / timed:.3f} speeds/s", flush=True)
+        if not one_by_one:  # one speed at a time: the batch's end speeds (in every batch), second calls timed
+            single = R._batch(settings_b, (), True)
+            for i in (0, b - 1):
+                one = (sc,) + tuple(a[i : i + 1] for a in args[1:])
+                if not i:
+                    single = single.lower(*one).compile()
+                t0 = time.perf_counter()
+                got = jax.block_until_ready(single(*one))
+                one_by_one[i > 0] = (time.perf_counter() - t0, float(np.asarray(got["arm_angle_deg:p2p"])[0]))
+            per = float(np.mean([v[0] for v in one_by_one.values()]))
+            print(f"one at a time: {per:.2f} s per speed = {1 / per:.3f} speeds/s", flush=True)
+        row["arm_p2p_difference_deg"] = max(abs(arm[0] - one_by_one[False][1]), abs(arm[-1] - one_by_one[True][1]))
+        rows.append(row)
+    per = float(np.mean([v[0] for v in one_by_one.values()]))
+    for row in rows:
+        row["throughput_against_one_at_a_time"] = row["speeds_per_s"] * per
+        print(f"batch {row['batch']}: {row['throughput_against_one_at_a_time']:.2f}x one at a time", flush=True)
+    out = _common.save_json(name, dict(backend=jax.default_backend(), settle_s=settle_s, one_at_a_time_s=per,
+                                       one_by_one={"700 rpm": one_by_one[False], "1000 rpm": one_by_one[True]}, rows=rows))
+    print(f"wrote {out}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--elements", default="4,8")
     ap.add_argument("--rpm", default="700:1100:200")
     ap.add_argument("--settle-s", dest="settle_s", type=float, default=0.5)
     ap.add_argument("--vmap-check", action="store_true", help="only: one speed without vmap against a vmapped one")
+    ap.add_argument("--batch-check", dest="batch_check", default=None, help="only: vmapped batches of these sizes")
+    ap.add_argument("--name", default="orders_hybrid_batch", help="results/<name>.json of --batch-check")
     args = ap.parse_args()
     info = _common.machine_info()
     print(_common.machine_line(info), flush=True)
     if args.vmap_check:
         return vmap_check(info)
+    if args.batch_check:
+        return batch_check(info, [int(b) for b in args.batch_check.split(",")], args.name, args.settle_s)
     rpm = _speeds(args.rpm)
     base = load_scene(SCENE)
     rot, rot_first, rot_wall = _timed(base, rpm, args.settle_s, "rotational")
