@@ -187,6 +187,34 @@ def test_shooting_finds_the_periodic_state_and_its_stability(zeta):
     assert float(info["ok"]) == (1.0 if zeta > 0 else 0.0)
 
 
+def test_a_neutral_cycle_is_a_steady_state_without_gradients():
+    """The forced oscillator of the test above beside a direction that barely decays (z'' + 0.1 z'
+    + 1e-8 z = 0, multiplier 1 - 1e-8 a cycle, as an arm that dry friction holds wherever it
+    stopped): the multiplier's estimate reads above 1 by its bias (ln cond / 2^20), so the cycle
+    counts as a steady state without gradients (below 1 + NEUTRAL) and is left to the settling
+    transient with them (a neutral family's member has no derivative)."""
+    import diffrax
+
+    from beltjax.orders import periodic_orbit, shooting
+
+    wn, period = 2 * np.pi * 9.5, 0.1
+    W = 2 * np.pi / period
+
+    def field(t, y, args):  # positions (x, z), then speeds (x', z')
+        return jnp.stack([y[2], y[3], -wn**2 * y[0] - 2 * 0.05 * wn * y[2] + 3.0 * jnp.cos(W * t),
+                          -0.1 * y[3] - 1e-8 * y[1]])
+
+    ts = period * jnp.arange(32) / 32
+    ctrl = diffrax.PIDController(rtol=1e-10, atol=1e-12)
+    got = {g: jax.jit(lambda: periodic_orbit(field, field, jnp.zeros(4), period, ts, diffrax.Dopri8(), ctrl,
+                                             100_000, 2, gradients=g))() for g in (False, True)}
+    mult = float(got[False][1]["multiplier"])
+    assert 1.0 < mult < 1.0 + shooting.NEUTRAL, mult
+    assert float(got[False][1]["ok"]) == 1.0 and float(got[True][1]["ok"]) == 0.0
+    X = 3.0 / (wn**2 - W**2 + 2j * 0.05 * wn * W)
+    assert abs(float(got[False][0][0]) - X.real) < 1e-8 * abs(X)
+
+
 def test_shooting_without_gradients_stops_on_newtons_prediction():
     """A hardening Duffing oscillator forced near its resonance (Newton needs several iterations):
     with gradients=False the loop stops on the prediction (a small step from the quadratic range),

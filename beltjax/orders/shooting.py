@@ -17,7 +17,9 @@ converges in 2-5 iterations (8-10 where dry friction holds the arm), where a set
 
 A fixed point is only the response an engine shows when it attracts: the largest Floquet
 multiplier (the spectral radius of P, estimated as ||P^m||^(1/m), m = 2^20, by repeated
-squaring, as ``jnp.linalg.eigvals`` has no accelerator kernel) must be below 1.  A case that does
+squaring, as ``jnp.linalg.eigvals`` has no accelerator kernel) must be below 1 (without
+gradients, below 1 + :data:`NEUTRAL`: a neutral cycle, such as a friction-held arm's, is a
+steady state too).  A case that does
 not converge in :data:`MAX_ITERATIONS`, gives a non-finite state or an unstable cycle, or whose
 iterate's cycle takes more than :data:`BUDGET_FACTOR` times the steps of its first (the iterate
 has left the cycle; :class:`StepBudget`) is left to the settling transient
@@ -39,8 +41,9 @@ tensioner, 600-6000 rpm), so a step of reach at most :data:`PREDICT_REACH` is ta
 cycle that would confirm it (a cycle with the variational equations, about 2.5 plain ones). The
 caller's recorded cycle confirms that state instead: its change over the cycle, divided by 1 - mu
 (mu the largest Floquet multiplier: a change d puts the state about d / (1 - mu) from the cycle),
-must be within :data:`PREDICT_CHECK` (:func:`beltjax.orders.steady.steady_case`, else the case
-settles). On the eight-pulley drives 100 speeds took 25 % less (benchmarks/README §5g). The
+must be within :data:`PREDICT_CHECK` (a neutral cycle's, mu within :data:`NEUTRAL` of 1, within
+:data:`TOLERANCE`: it drifts along its family at no error; :func:`beltjax.orders.steady.steady_case`,
+else the case settles). On the eight-pulley drives 100 speeds took 25 % less (benchmarks/README §5g). The
 values agree with the converged loop's to the tolerance; their gradients would not (P is the last
 iterate's), hence the flag, and differentiating a ``gradients=False`` orbit raises
 (:func:`refuse_tangents`).
@@ -95,6 +98,14 @@ BUDGET_FACTOR = 4
 IDLE_FRACTION = 1e-9
 #: squarings of P in the spectral-radius estimate (P^(2^SQUARINGS))
 SQUARINGS = 20
+#: without gradients, a cycle whose largest Floquet multiplier estimate is below 1 + NEUTRAL (-)
+#: counts as a steady state: a neutral direction, such as an arm that dry friction holds wherever
+#: it stopped (the eight-pulley drive with the friction tensioner at 4745-4855 rpm: 1 + 3e-7 to
+#: 1 + 4e-7 after 1-2 iterations, which then settled for 1 s each), reads above 1 by the estimate's
+#: bias, up to ln(cond of P's eigenvectors) / 2^SQUARINGS (8.8e-6 for a condition of 1e4); a
+#: perturbation that grows by 1e-5 a cycle takes 100,000 cycles to grow e-fold.  With gradients
+#: the test stays strict (< 1): the derivative of a neutral family's member is not defined.
+NEUTRAL = 1e-5
 #: without gradients: a Newton step of at most this reach (-) from an iterate whose residual is at
 #: most :data:`PREDICT_RESIDUAL` (-) ends the loop (module docstring; C r^2 <= 0.56e-6 seen)
 PREDICT_REACH = 1e-3
@@ -274,7 +285,7 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
         y_star, steps = c["y"] - correction, c["steps"] + plain.stats["num_steps"]
     else:  # the loop's last iterate (its last step taken)
         y_star, steps, usable = c["y"], c["steps"], c["done"]
-    ok = usable & (mult < 1.0) & jnp.all(jnp.isfinite(y_star))
+    ok = usable & (mult < (1.0 if gradients else 1.0 + NEUTRAL)) & jnp.all(jnp.isfinite(y_star))
     info = dict(iterations=c["k"].astype(y0.dtype), residual=c["residual"], multiplier=mult, steps=steps.astype(y0.dtype),
                 ok=ok.astype(y0.dtype), predicted=c["predicted"].astype(y0.dtype),
                 cycle_steps=c["cycle_steps"].astype(y0.dtype))

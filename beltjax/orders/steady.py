@@ -306,8 +306,12 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     if settings.method == "shooting":  # the recorded cycle's own change, if the shooting found an attracting cycle
         change = shooting.change_over_cycle(late[0, : 2 * n], late[-1, : 2 * n], late[:-1, : 2 * n], n,
                                             settings.rtol, settings.atol)
-        # stopped on Newton's prediction: within PREDICT_CHECK of the cycle (a change d: about d / (1 - mu) off)
-        confirmed = (shot["predicted"] < 0.5) | (change <= shooting.PREDICT_CHECK * (1.0 - shot["multiplier"]))
+        # stopped on Newton's prediction: within PREDICT_CHECK of the cycle (a change d: about d / (1 - mu) off);
+        # a neutral cycle (mu within NEUTRAL of 1, a friction-held arm) drifts along its family at no error,
+        # so its recorded cycle must meet the Newton loop's own convergence test instead
+        mu = shot["multiplier"]
+        allowed = jnp.where(mu >= 1.0 - shooting.NEUTRAL, shooting.TOLERANCE, shooting.PREDICT_CHECK * (1.0 - mu))
+        confirmed = (shot["predicted"] < 0.5) | (change <= allowed)
         out["settling"] = jnp.where((shot["ok"] > 0.5) & confirmed, change, jnp.inf)
         out["shooting_iterations"], out["floquet_multiplier"] = shot["iterations"], shot["multiplier"]
         out["shooting_cycle_steps"] = shot["cycle_steps"]
