@@ -365,14 +365,16 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
 
 def test_fallback_device(monkeypatch):
     """Where a fallback pass runs: the default device on a CPU backend; on an accelerator the host's
-    CPU for at most HOST_FALLBACK_MAX speeds or cases, the accelerator for more."""
+    CPU for at most HOST_FALLBACK_MAX speeds or cases, the accelerator for more; the hybrid model's
+    passes on the host's CPU whatever their size (a GPU runs its small implicit steps no faster)."""
     from beltjax.orders import run as orders_run
 
     monkeypatch.setattr(orders_run.jax, "default_backend", lambda: "cpu")
-    assert orders.fallback_device(1) is None
+    assert orders.fallback_device(1) is None and orders.fallback_device(1000, hybrid=True) is None
     monkeypatch.setattr(orders_run.jax, "default_backend", lambda: "gpu")
     assert orders.fallback_device(orders_run.HOST_FALLBACK_MAX).platform == "cpu"
     assert orders.fallback_device(orders_run.HOST_FALLBACK_MAX + 1) is None
+    assert orders.fallback_device(1000, hybrid=True).platform == "cpu"
 
 
 def test_an_unknown_start_is_refused():

@@ -112,3 +112,34 @@ def test_batched_and_differentiated_steady_states_refuse_the_hybrid():
         optimize.parse(spec, sc)
     with pytest.raises(orders.OrdersError, match="model.fidelity"):
         orders.over_speed(sc, {}, [600.0], 1.0, orders.for_scene(sc, orders.Settings()))
+
+
+def test_beside_an_accelerator_the_hybrid_runs_on_the_host(monkeypatch):
+    """Beside an accelerator (the backend made to read "gpu") every pass of the hybrid model's
+    response over speed runs on the host's CPU, one speed at a time (a GPU runs its small implicit
+    steps no faster and compiles them 5x longer: orders.fallback_device); the compiled batch is
+    replaced by a stand-in that records where and how it was called."""
+    import jax
+
+    from beltjax.orders import run as orders_run
+
+    calls = []
+
+    def fake_batch(settings, keys, single=False):
+        def fn(scene, x, rpm, settle):
+            n = len(np.asarray(rpm))
+            calls.append((settings.method, single, n, jax.config.jax_default_device))
+            one = np.ones(n)
+            return {"settling": np.where(float(np.asarray(settle)[0]) > 0.5, 1e-4, 0.5) * one, "solver_ok": one,
+                    "converged": one, "supercritical": 0 * one, "min_span_force_N": 100 * one, "steps": 10 * one,
+                    "t_end_s": one, "shooting_iterations": 0 * one, "shooting_cycle_steps": np.zeros((n, 12)),
+                    "floquet_multiplier": np.nan * one, "arm_angle_deg:p2p": one,
+                    "hub_forces_N": np.zeros((n, 4, 3, 2)), "t_s": np.zeros((n, 4)), "max_friction_needed": np.zeros((n, 3))}
+        return fn
+
+    monkeypatch.setattr(orders_run, "_batch", fake_batch)
+    monkeypatch.setattr(orders_run.jax, "default_backend", lambda: "gpu")
+    res = orders.response_over_speed(loads_scene(HYBRID), [500.0, 600.0, 700.0], settle_s=0.5)
+    cpu = jax.devices("cpu")[0]
+    assert [c[:3] for c in calls] == [("settle", True, 1)] * 6  # three speeds, then each again 4x longer
+    assert all(c[3] == cpu for c in calls) and res.status == ["ok"] * 3

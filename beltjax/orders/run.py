@@ -194,10 +194,14 @@ def _batch(settings: Settings, keys: tuple[str, ...], single: bool = False) -> C
 HOST_FALLBACK_MAX = 16
 
 
-def fallback_device(n: int):
+def fallback_device(n: int, hybrid: bool = False):
     """The device a fallback pass of ``n`` speeds or cases runs on: the host's CPU when the default
-    backend is an accelerator and ``n`` <= :data:`HOST_FALLBACK_MAX`, else None (the default)."""
-    if jax.default_backend() == "cpu" or n > HOST_FALLBACK_MAX:
+    backend is an accelerator and ``n`` <= :data:`HOST_FALLBACK_MAX`, else None (the default).
+    ``hybrid``: every pass of the hybrid model runs on the host's CPU beside an accelerator (one
+    speed at a time, a sequence of small implicit steps: on one H200 3.0 s a speed after a 196 s
+    compilation, against 2.3-2.6 s a speed after about 38 s on a 2-core CPU; a vmapped batch of
+    128 had not compiled and run in 290 s: benchmarks/README.md section 5g)."""
+    if jax.default_backend() == "cpu" or (n > HOST_FALLBACK_MAX and not hybrid):
         return None
     try:
         return jax.devices("cpu")[0]
@@ -347,7 +351,9 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     t0 = time.perf_counter()
-    out = run(functools.partial(_batch, settings, keys), rpm, settle_s)
+    place = fallback_device(rpm.size, hybrid) if hybrid else None  # the hybrid model: on the host's CPU
+    with jax.default_device(place) if place is not None else contextlib.nullcontext():
+        out = run(functools.partial(_batch, settings, keys), rpm, settle_s)
     # the speeds that had not settled: a shooting that did not converge to an attracting cycle runs
     # the settling transient, and a transient that had not settled runs again RETRY_FACTOR x longer
     rerun = np.zeros(rpm.size, dtype=bool)
@@ -359,7 +365,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
         rerun[retry] = True
         for i in retry:
             used[i] = f"{method} {time_s:g} s"
-        host = fallback_device(retry.size)
+        host = fallback_device(retry.size, hybrid)
         with jax.default_device(host) if host is not None else contextlib.nullcontext():
             again = run(functools.partial(_batch, dataclasses.replace(settings, method=method), keys), rpm[retry],
                         time_s, (chunk or default_chunk(retry.size, method)) if host is None or hybrid
