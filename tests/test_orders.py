@@ -351,7 +351,7 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
     monkeypatch.setattr(orders_run, "_batch", fake_batch)
     asked = []  # the fallback passes ask where to run (on an accelerator: a few speeds on the host's CPU);
     # here the first pass runs where the batch runs (padded to the chunk), the second on the host (one batch)
-    monkeypatch.setattr(orders_run, "fallback_device", lambda n: None if asked.append(n) or len(asked) == 1
+    monkeypatch.setattr(orders_run, "fallback_device", lambda n, hybrid=False: None if asked.append(n) or len(asked) == 1
                         else jax.devices("cpu")[0])
     res = orders.response_over_speed(loads_scene(SCENE), [500.0, 600.0, 700.0, 900.0], settle_s=1.0, chunk=4)
     assert asked == [1, 1]
