@@ -198,8 +198,8 @@ def fallback_device(n: int, hybrid: bool = False):
     """The device a fallback pass of ``n`` speeds or cases runs on: the host's CPU when the default
     backend is an accelerator and ``n`` <= :data:`HOST_FALLBACK_MAX`, else None (the default).
     ``hybrid``: every pass of the hybrid model runs on the host's CPU beside an accelerator (one
-    speed at a time, a sequence of small implicit steps: on one H200 3.0 s a speed after a 196 s
-    compilation, against 2.3-2.6 s a speed after about 38 s on a 2-core CPU; a vmapped batch of
+    speed at a time, a sequence of small implicit steps: on one H200 1.0 ms a step after a 196 s
+    compilation, against 0.37 ms a step after about 38 s on a 2-core CPU; a vmapped batch of
     128 had not compiled and run in 290 s: benchmarks/README.md section 5g)."""
     if jax.default_backend() == "cpu" or (n > HOST_FALLBACK_MAX and not hybrid):
         return None

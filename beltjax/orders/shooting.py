@@ -41,7 +41,7 @@ tensioner, 600-6000 rpm), so a step of reach at most :data:`PREDICT_REACH` is ta
 cycle that would confirm it (a cycle with the variational equations, about 2.5 plain ones). The
 caller's recorded cycle confirms that state instead: its change over the cycle, divided by 1 - mu
 (mu the largest Floquet multiplier: a change d puts the state about d / (1 - mu) from the cycle),
-must be within :data:`PREDICT_CHECK` (a neutral cycle's, mu within :data:`NEUTRAL` of 1, within
+must be within :data:`PREDICT_CHECK` (a neutral cycle's, mu's estimate at least 1, within
 :data:`TOLERANCE`: it drifts along its family at no error; :func:`beltjax.orders.steady.steady_case`,
 else the case settles). On the eight-pulley drives 100 speeds took 25 % less (benchmarks/README §5g). The
 values agree with the converged loop's to the tolerance; their gradients would not (P is the last

@@ -307,10 +307,10 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         change = shooting.change_over_cycle(late[0, : 2 * n], late[-1, : 2 * n], late[:-1, : 2 * n], n,
                                             settings.rtol, settings.atol)
         # stopped on Newton's prediction: within PREDICT_CHECK of the cycle (a change d: about d / (1 - mu) off);
-        # a neutral cycle (mu within NEUTRAL of 1, a friction-held arm) drifts along its family at no error,
-        # so its recorded cycle must meet the Newton loop's own convergence test instead
+        # a neutral cycle (mu's estimate, never below the true value, at least 1: a friction-held arm) drifts
+        # along its family at no error, so its recorded cycle must meet the Newton loop's own convergence test
         mu = shot["multiplier"]
-        allowed = jnp.where(mu >= 1.0 - shooting.NEUTRAL, shooting.TOLERANCE, shooting.PREDICT_CHECK * (1.0 - mu))
+        allowed = jnp.where(mu >= 1.0, shooting.TOLERANCE, shooting.PREDICT_CHECK * (1.0 - mu))
         confirmed = (shot["predicted"] < 0.5) | (change <= allowed)
         out["settling"] = jnp.where((shot["ok"] > 0.5) & confirmed, change, jnp.inf)
         out["shooting_iterations"], out["floquet_multiplier"] = shot["iterations"], shot["multiplier"]
