@@ -211,8 +211,27 @@ def test_a_neutral_cycle_is_a_steady_state_without_gradients():
     mult = float(got[False][1]["multiplier"])
     assert 1.0 < mult < 1.0 + shooting.NEUTRAL, mult
     assert float(got[False][1]["ok"]) == 1.0 and float(got[True][1]["ok"]) == 0.0
+    # the gradient path converged to the same cycle and refused it for its multiplier alone
+    assert float(got[True][1]["multiplier"]) > 1.0
+    assert float(got[True][1]["residual"]) <= shooting.TOLERANCE
     X = 3.0 / (wn**2 - W**2 + 2j * 0.05 * wn * W)
     assert abs(float(got[False][0][0]) - X.real) < 1e-8 * abs(X)
+
+
+def test_a_predicted_cycle_is_confirmed_by_its_recorded_change():
+    """The caller's check of a cycle the Newton loop stopped on by prediction: an attracting
+    cycle's recorded change must be within PREDICT_CHECK (1 - mu), a neutral one's (estimate at
+    least 1) within the loop's TOLERANCE; a cycle the loop converged on is not checked again."""
+    from beltjax.orders.shooting import PREDICT_CHECK, TOLERANCE, prediction_confirmed
+
+    def ok(change, mu, predicted=1.0):
+        return bool(prediction_confirmed(jnp.asarray(change), jnp.asarray(mu), jnp.asarray(predicted)))
+
+    assert ok(0.5 * TOLERANCE, 1.0 + 3e-7) and not ok(2 * TOLERANCE, 1.0 + 3e-7)  # neutral
+    slow = 1.0 - 1e-6  # slowly attracting: the check tightens with 1 - mu, not the neutral one's
+    assert not ok(0.5 * TOLERANCE, slow) and ok(0.5 * PREDICT_CHECK * 1e-6, slow)
+    assert ok(0.5 * PREDICT_CHECK * 0.5, 0.5) and not ok(2 * PREDICT_CHECK * 0.5, 0.5)
+    assert ok(1.0, 1.5, predicted=0.0)
 
 
 def test_shooting_without_gradients_stops_on_newtons_prediction():

@@ -60,7 +60,7 @@ class OrdersError(BeltjaxError):
 
 def needs_rerun(out: dict, settle_tol: float = SETTLE_TOL):
     """True (numpy or JAX, per speed or case) where the periodic state was not reached: the
-    settling residual (-) above ``settle_tol`` (inf where the shooting found no attracting cycle)
+    settling residual (-) above ``settle_tol`` (inf where the shooting found no attracting or neutral cycle)
     while the statics converged, the transient reached its end and the operating point is below
     the critical speed (past it a speed is flagged, not run again).  ``out``: the arrays
     ``settling``, ``solver_ok``, ``converged`` and ``supercritical`` of
@@ -195,9 +195,9 @@ HOST_FALLBACK_MAX = 16
 
 
 def fallback_device(n: int, hybrid: bool = False):
-    """The device a fallback pass of ``n`` speeds or cases runs on: the host's CPU when the default
-    backend is an accelerator and ``n`` <= :data:`HOST_FALLBACK_MAX`, else None (the default).
-    ``hybrid``: every pass of the hybrid model runs on the host's CPU beside an accelerator (one
+    """The device a pass of ``n`` speeds or cases runs on: for a fallback pass, the host's CPU when
+    the default backend is an accelerator and ``n`` <= :data:`HOST_FALLBACK_MAX`, else None (the
+    default).  ``hybrid``: every pass of the hybrid model, the first included, runs on the host's CPU beside an accelerator (one
     speed at a time, a sequence of small implicit steps: on one H200 1.0 ms a step after a 196 s
     compilation, against 0.37 ms a step after about 38 s on a 2-core CPU; a vmapped batch of
     128 had not compiled and run in 290 s: benchmarks/README.md section 5g)."""

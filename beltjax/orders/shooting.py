@@ -115,6 +115,17 @@ PREDICT_RESIDUAL = 1e-2
 PREDICT_CHECK = 1e-4
 
 
+def prediction_confirmed(change, multiplier, predicted):
+    """Whether a cycle's state is its periodic state (bool array): where the Newton loop stopped on
+    its prediction (``predicted`` > 0.5), the recorded cycle's ``change`` (-,
+    :func:`change_over_cycle`) must be within :data:`PREDICT_CHECK` times 1 - ``multiplier`` (-;
+    a change d puts the state about d / (1 - mu) from the cycle), or, for a neutral cycle (the
+    multiplier's estimate, never below the true value, at least 1: a friction-held arm, which
+    drifts along its family at no error), within the loop's own :data:`TOLERANCE`."""
+    allowed = jnp.where(multiplier >= 1.0, TOLERANCE, PREDICT_CHECK * (1.0 - multiplier))
+    return (predicted < 0.5) | (change <= allowed)
+
+
 def change_over_cycle(y_start, y_end, samples, n: int, rtol: float, atol: float):
     """The state's change over one cycle, y_end - y_start (2n,), against its range over the cycle's
     ``samples`` (K, 2n), for the n positions and the n speeds apart; the larger of the two (-).  A
@@ -213,7 +224,8 @@ def periodic_orbit(f, f_held, y0, period, ts, solver, controller, max_steps: int
     the last iterate), ``multiplier`` (largest Floquet multiplier, -), ``steps`` (all cycles),
     ``cycle_steps`` (:data:`MAX_ITERATIONS`,) each Newton cycle's steps (0 after the last),
     ``ok`` (1.0 / 0.0: converged, to :data:`TOLERANCE` or to the integration's own error
-    (:data:`NOISE_STOP`), finite and attracting), ``predicted`` (1.0 where the loop stopped on
+    (:data:`NOISE_STOP`), finite and attracting, or without gradients neutral: multiplier below
+    1 + :data:`NEUTRAL`), ``predicted`` (1.0 where the loop stopped on
     Newton's prediction: the caller checks the next cycle against :data:`PREDICT_CHECK`) as floats.
     Differentiable in the parameters ``f`` closes over if ``gradients`` (static; module docstring)."""
     N = y0.shape[0]

@@ -215,7 +215,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     ``hub_forces_N`` (K, bearings, 2): the hub force vectors over the cycle (N); ``t_s`` (K,)
     the recorded times (s); ``settling`` (-): :func:`_settling`, or with shooting the recorded
     cycle's own change (:func:`beltjax.orders.shooting.change_over_cycle`; inf where the shooting
-    did not converge to an attracting cycle); ``shooting_iterations``, ``shooting_cycle_steps``
+    did not converge to an attracting, or without gradients neutral, cycle or its prediction was not
+    confirmed: :func:`~beltjax.orders.shooting.prediction_confirmed`); ``shooting_iterations``, ``shooting_cycle_steps``
     (each Newton cycle's steps) and ``floquet_multiplier`` (the cycle's largest, -; 0, zeros and
     nan for a settling transient); ``converged`` (statics) and
     ``solver_ok`` (the transient reached the end) and ``supercritical`` (a span past its critical
@@ -306,12 +307,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     if settings.method == "shooting":  # the recorded cycle's own change, if the shooting found an attracting cycle
         change = shooting.change_over_cycle(late[0, : 2 * n], late[-1, : 2 * n], late[:-1, : 2 * n], n,
                                             settings.rtol, settings.atol)
-        # stopped on Newton's prediction: within PREDICT_CHECK of the cycle (a change d: about d / (1 - mu) off);
-        # a neutral cycle (mu's estimate, never below the true value, at least 1: a friction-held arm) drifts
-        # along its family at no error, so its recorded cycle must meet the Newton loop's own convergence test
-        mu = shot["multiplier"]
-        allowed = jnp.where(mu >= 1.0, shooting.TOLERANCE, shooting.PREDICT_CHECK * (1.0 - mu))
-        confirmed = (shot["predicted"] < 0.5) | (change <= allowed)
+        confirmed = shooting.prediction_confirmed(change, shot["multiplier"], shot["predicted"])
         out["settling"] = jnp.where((shot["ok"] > 0.5) & confirmed, change, jnp.inf)
         out["shooting_iterations"], out["floquet_multiplier"] = shot["iterations"], shot["multiplier"]
         out["shooting_cycle_steps"] = shot["cycle_steps"]
