@@ -382,6 +382,39 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
     assert res.status == ["ok", "ok", "ok", "supercritical"] and res.settling[1] == 1e-4
 
 
+def test_a_failed_rerun_keeps_the_settled_numbers(monkeypatch):
+    """A speed whose settling transient ended unsettled and whose longer re-run then failed (its
+    solver stopped) keeps the first run's numbers, flagged not_settled, and meta says so; a
+    re-run that fails after a shooting that gave up leaves the failure (no transient's state to
+    keep).  The same rule (orders.run.replaced_by) serves a sweep's response."""
+    from beltjax.orders import run as orders_run
+
+    def fake_batch(settings, keys, single=False):
+        def fn(scene, x, rpm, settle):
+            rpm, long = np.asarray(rpm), float(np.asarray(settle)[0]) > 1.0
+            one = np.ones_like(rpm)
+            shoot = settings.method == "shooting"
+            return {"settling": (np.inf if shoot else 0.1) * one, "solver_ok": (0.0 if long else 1.0) * one,
+                    "converged": one, "supercritical": 0 * one, "min_span_force_N": 100 * one,
+                    "steps": 10 * one, "t_end_s": 0.1 * one, "shooting_iterations": 3 * one,
+                    "shooting_cycle_steps": np.zeros((len(rpm), 8)), "floquet_multiplier": np.nan * one,
+                    "arm_angle_deg:p2p": (np.nan if long else 1.0) * one + (2.0 if shoot else 0.0),
+                    "hub_forces_N": np.zeros((len(rpm), 4, 3, 2)), "t_s": np.zeros((len(rpm), 4)),
+                    "max_friction_needed": np.zeros((len(rpm), 3))}
+        return fn
+
+    monkeypatch.setattr(orders_run, "_batch", fake_batch)
+    monkeypatch.setattr(orders_run, "fallback_device", lambda n, hybrid=False: None)
+    scene = loads_scene(SCENE)
+    got = orders.response_over_speed(scene, [600.0], settle_s=1.0, chunk=1,
+                                     settings=orders.Settings(method="settle"))
+    assert got.status == ["not_settled"] and got.stats["arm_angle_deg:p2p"][0] == 1.0
+    assert got.meta["methods"] == [f"settle 1 s (its {orders.run.RETRY_FACTOR:g} s re-run failed)"]
+    shot = orders.response_over_speed(scene, [600.0], settle_s=1.0, chunk=1)  # shooting, settle 1 s, then 4 s
+    assert shot.status == ["not_settled"] and shot.stats["arm_angle_deg:p2p"][0] == 1.0
+    assert orders.run.replaced_by([False, False, True], [True, False, True]).tolist() == [False, True, True]
+
+
 def test_fallback_device(monkeypatch):
     """Where a fallback pass runs: the default device on a CPU backend; on an accelerator the host's
     CPU for at most HOST_FALLBACK_MAX speeds or cases, the accelerator for more; the hybrid model's

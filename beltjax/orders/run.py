@@ -78,6 +78,15 @@ def fallback_passes(method: str, settle_s: float) -> list[tuple[float, str]]:
     return passes if method == "shooting" else passes[1:]
 
 
+def replaced_by(again_ok, earlier_settled):
+    """Which speeds (or cases) of a re-run pass take its results (bool array): all but those whose
+    re-run failed (``again_ok`` False: its solver stopped, e.g. out of steps) where the earlier
+    results came from a settling transient that reached its end (``earlier_settled``), which keep
+    those, flagged as not settled, rather than a failure's NaN.  A shooting's results that gave
+    up are replaced whatever happens (they are not a transient's state)."""
+    return np.asarray(again_ok, dtype=bool) | ~np.asarray(earlier_settled, dtype=bool)
+
+
 def check(scene: Scene, rpm) -> None:
     """Refuse (:class:`OrdersError`) what has no periodic steady state in crank angle: a drive
     pulley that is not driven, a run-up, excitation at a fixed frequency (Hz) or a crank trace
@@ -358,21 +367,25 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     # the settling transient, and a transient that had not settled runs again RETRY_FACTOR x longer
     rerun = np.zeros(rpm.size, dtype=bool)
     used = [settings.method if settings.method == "shooting" else f"settle {settle_s:g} s"] * rpm.size
+    settled = np.full(rpm.size, settings.method == "settle")  # each speed's numbers from a settling transient
     for time_s, method in fallback_passes(settings.method, settle_s):
         retry = np.flatnonzero(needs_rerun(out, settle_tol))
         if not retry.size:
             break
         rerun[retry] = True
-        for i in retry:
-            used[i] = f"{method} {time_s:g} s"
         host = fallback_device(retry.size, hybrid)
         with jax.default_device(host) if host is not None else contextlib.nullcontext():
             again = run(functools.partial(_batch, dataclasses.replace(settings, method=method), keys), rpm[retry],
                         time_s, (chunk or default_chunk(retry.size, method)) if host is None or hybrid
                         else retry.size)  # the host: one batch (the hybrid model: one speed at a time)
+        take = replaced_by(again["solver_ok"] > 0.5, settled[retry])
+        for i, t in zip(retry, take):
+            used[i] = f"{method} {time_s:g} s" if t else f"{used[i]} (its {time_s:g} s re-run failed)"
+        retry = retry[take]
+        settled[retry] = True
         for k in out:
             if k not in ("shooting_iterations", "shooting_cycle_steps", "floquet_multiplier"):  # (why it gave up)
-                out[k][retry] = again[k]
+                out[k][retry] = again[k][take]
     wall = time.perf_counter() - t0
     cols = _columns(scene)
     columns = {}

@@ -368,7 +368,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         track = mode_tracking.n_computed(modes, drive.n_independent(scene))
     if "response" in outputs:  # a steady state in crank angle (driven crank, orders, lasting loads)
         from beltjax.orders import OrdersError, Settings, check, fallback_device, fallback_passes, for_scene
-        from beltjax.orders.run import check_batched, settle_problem
+        from beltjax.orders.run import check_batched, replaced_by, settle_problem
 
         if problem := settle_problem(settle_s):
             raise SweepError(problem, "settle_s")
@@ -412,6 +412,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         return o.pop("response_rerun", False) & np.isin(o["code"], (_CODE["span_slack"], _CODE["not_settled"]))
 
     rerun = unsettled(out) & ~invalid
+    settled = np.full(n, bool(opts.response) and opts.response.method == "settle")  # numbers from a settling run
     for time_s, method in fallback_passes(opts.response.method, float(settle_s)) if opts.response else []:
         idx = np.flatnonzero(rerun)  # the cases whose periodic state was not reached run again, as in beltjax orders
         if not idx.size:
@@ -422,8 +423,12 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
                             time_s, whole=host is not None)
         rerun = np.zeros(n, dtype=bool)
         rerun[idx] = unsettled(again)
+        take = replaced_by(again["code"] != _CODE["transient_failed"], settled[idx])  # as in beltjax orders
+        rerun[idx[~take]] = False
+        idx = idx[take]
+        settled[idx] = True
         for k in out:
-            out[k][idx] = again[k]
+            out[k][idx] = again[k][take]
     # the checks that need each case's solved installation: the idler where its arm settles, the
     # string-spread limit at the installed tension (validate.solved_status)
     arm = out["tensioner_angle_deg"] if scene.tensioner is not None else None
