@@ -81,7 +81,8 @@ def fallback_passes(method: str, settle_s: float) -> list[tuple[float, str]]:
 def replaced_by(again_ok, earlier_settled):
     """Which speeds (or cases) of a re-run pass take its results (bool array): all but those whose
     re-run failed (``again_ok`` False: its solver stopped, e.g. out of steps) where the earlier
-    results came from a settling transient that reached its end (``earlier_settled``), which keep
+    results came from a settling transient that reached its end (``earlier_settled``, one bool or
+    per speed), which keep
     those, flagged as not settled, rather than a failure's NaN.  A shooting's results that gave
     up are replaced whatever happens (they are not a transient's state)."""
     return np.asarray(again_ok, dtype=bool) | ~np.asarray(earlier_settled, dtype=bool)
@@ -367,7 +368,7 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
     # the settling transient, and a transient that had not settled runs again RETRY_FACTOR x longer
     rerun = np.zeros(rpm.size, dtype=bool)
     used = [settings.method if settings.method == "shooting" else f"settle {settle_s:g} s"] * rpm.size
-    settled = np.full(rpm.size, settings.method == "settle")  # each speed's numbers from a settling transient
+    earlier = settings.method  # the method that gave the numbers a pass may replace
     for time_s, method in fallback_passes(settings.method, settle_s):
         retry = np.flatnonzero(needs_rerun(out, settle_tol))
         if not retry.size:
@@ -378,11 +379,10 @@ def response_over_speed(scene: Scene, rpm, *, values: dict | None = None, settle
             again = run(functools.partial(_batch, dataclasses.replace(settings, method=method), keys), rpm[retry],
                         time_s, (chunk or default_chunk(retry.size, method)) if host is None or hybrid
                         else retry.size)  # the host: one batch (the hybrid model: one speed at a time)
-        take = replaced_by(again["solver_ok"] > 0.5, settled[retry])
+        take = replaced_by(again["solver_ok"] > 0.5, earlier == "settle")
         for i, t in zip(retry, take):
             used[i] = f"{method} {time_s:g} s" if t else f"{used[i]} (its {time_s:g} s re-run failed)"
-        retry = retry[take]
-        settled[retry] = True
+        retry, earlier = retry[take], method
         for k in out:
             if k not in ("shooting_iterations", "shooting_cycle_steps", "floquet_multiplier"):  # (why it gave up)
                 out[k][retry] = again[k][take]

@@ -412,7 +412,7 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
         return o.pop("response_rerun", False) & np.isin(o["code"], (_CODE["span_slack"], _CODE["not_settled"]))
 
     rerun = unsettled(out) & ~invalid
-    settled = np.full(n, bool(opts.response) and opts.response.method == "settle")  # numbers from a settling run
+    earlier = opts.response.method if opts.response else None  # the method that gave the numbers a pass may replace
     for time_s, method in fallback_passes(opts.response.method, float(settle_s)) if opts.response else []:
         idx = np.flatnonzero(rerun)  # the cases whose periodic state was not reached run again, as in beltjax orders
         if not idx.size:
@@ -423,10 +423,8 @@ def evaluate(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ...] |
                             time_s, whole=host is not None)
         rerun = np.zeros(n, dtype=bool)
         rerun[idx] = unsettled(again)
-        take = replaced_by(again["code"] != _CODE["transient_failed"], settled[idx])  # as in beltjax orders
-        rerun[idx[~take]] = False
-        idx = idx[take]
-        settled[idx] = True
+        take = replaced_by(again["code"] != _CODE["transient_failed"], earlier == "settle")  # as in beltjax orders
+        idx, earlier = idx[take], method
         for k in out:
             out[k][idx] = again[k][take]
     # the checks that need each case's solved installation: the idler where its arm settles, the
