@@ -74,8 +74,8 @@ MAX_SPEEDS = 2000  # most speeds in one Campbell sweep
 
 
 def _rpm_range(text):
-    """--rpm A:B:STEP -> numpy.arange(A, B + STEP/2, STEP) (inclusive end)."""
-    import numpy as np
+    """--rpm A:B:STEP -> the speeds from A by STEP and B itself (:func:`beltjax.validate.rpm_range`)."""
+    from beltjax.validate import rpm_range
 
     parts = text.split(":")
     if len(parts) != 3:
@@ -92,17 +92,16 @@ def _rpm_range(text):
         raise argparse.ArgumentTypeError(f"--rpm start A must be >= 0, got {text!r}")
     if b < a:
         raise argparse.ArgumentTypeError(f"--rpm end B must be >= start A, got {text!r}")
-    n = math.ceil((b + step / 2 - a) / step)  # numpy.arange's length
-    if n > MAX_SPEEDS:
-        raise argparse.ArgumentTypeError(f"--rpm gives {n} speeds, at most {MAX_SPEEDS} allowed, got {text!r}")
-    return np.arange(a, b + step / 2, step)
+    try:
+        return rpm_range(a, b, step, MAX_SPEEDS)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--rpm {exc}, got {text!r}") from None
 
 
 def _orders(text):
     """--orders 1,2,3 -> tuple of positive floats."""
-    items = [x.strip() for x in text.split(",")]
     out = []
-    for x in items:
+    for x in (x.strip() for x in text.split(",")):
         try:
             k = float(x)
         except ValueError:
@@ -230,6 +229,8 @@ def cmd_modal(args) -> int:
         print("note: the scene does not list the \"transport\" effect, so the belt speed does not change the modes")
     print(modal_table(m, args.modes))
     print(_panels_note(m, args.modes))
+    for warning in [m.statics.length_note] if m.statics.length_note else []:  # spans off their free length
+        print(f"beltjax: warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -392,7 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
     ca = sub.add_parser("campbell", help="Campbell diagram: frequencies against drive pulley speed")
     ca.add_argument("scene", help="scene file (TOML)")
     ca.add_argument("--rpm", type=_rpm_range, required=True,
-                    help="drive pulley speeds A:B:STEP [rpm], end included (e.g. 0:2500:50)")
+                    help="drive pulley speeds A:B:STEP [rpm]: from A by STEP, and B itself (e.g. 0:2500:50)")
     ca.add_argument("--orders", type=_orders, default=(1.0, 2.0, 3.0),
                     help="excitation orders, comma-separated (default 1,2,3)")
     ca.add_argument("--modes", type=_modes, default=20, help="lowest modes computed (default 20)")
@@ -418,7 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
                                        "(arm motion, span tensions, hub loads, slip margins, order content)")
     od.add_argument("scene", help="scene file (TOML)")
     od.add_argument("--rpm", type=_rpm_range, required=True,
-                    help="drive pulley speeds A:B:STEP [rpm], end included, all > 0 (e.g. 600:6000:50)")
+                    help="drive pulley speeds A:B:STEP [rpm]: from A by STEP, and B itself; all > 0 (e.g. 600:6000:50)")
     od.add_argument("--method", default="shooting",  # checked by beltjax.orders (its METHODS)
                     help="shooting or settle: periodic steady state by shooting (Newton on the one-cycle map; "
                          "default; belt_slip and the hybrid model settle) or by a settling transient")

@@ -20,11 +20,16 @@ from beltjax.statics import StaticsError, check_installation, check_solved, solv
 class StaticResult:
     """Static state of a drive (SI units; route order); see :func:`analyse_statics`.
 
-    span_names; span_tensions_N: mean axial force per span; span_lengths_m;
+    span_names; span_tensions_N: mean axial force per span; span_lengths_m: between the model's
+    end nodes (points of the belt, carried along the rims by the pulleys and the arm);
+    span_free_lengths_m: tangent to tangent (a real span's; ``length_note`` says when the hybrid
+    model's end nodes sit far from the tangent points);
     belt_length_m: unstretched belt length; installation_tension_N; stretch;
     hub_forces_N: force of the belt on each hub {name: [Fx, Fy]} (the tensioner
     idler as "tensioner"); tensioner_angle_deg, spring_moment_Nm,
-    tensioner_pivot_force_N (None without a tensioner); wrap_angles_deg;
+    tensioner_pivot_force_N, arm_balances_deg: every stable arm angle that balances the installed
+    belt (None without a tensioner); wrap_angles_deg: of the solved layout
+    (the arm's swing from its installed angle turns them);
     speed_m_s; converged, iterations; span_forces_N: each span's force on the pulleys,
     tension less rhoA c^2 lam (:mod:`beltjax.critical`); supercritical: None, or the
     one-line reason why the state is past the critical speed (only with
@@ -62,15 +67,21 @@ class StaticResult:
     friction: dict = field(default_factory=dict)
     decouplers: dict = field(default_factory=dict)
     arm_on_stop: str | None = None
+    span_free_lengths_m: np.ndarray | None = None
+    length_note: str | None = None
+    arm_balances_deg: list | None = None
+    arm_note: str | None = None
 
     @property
     def warnings(self) -> list[str]:
         """One line per thing the state's reader must know: arcs that would slip
-        (:func:`beltjax.friction.slip_warning`), the arm pressed into an end stop."""
+        (:func:`beltjax.friction.slip_warning`), an arm that balances the installed belt at more
+        than one angle (``arm_note``), the arm pressed into an end stop, hybrid spans
+        whose end nodes sit far from their tangent points (``length_note``)."""
         from beltjax import friction
 
         lines = [friction.slip_warning(self.friction, self.state)]
-        return [x for x in lines + [self.arm_on_stop] if x]
+        return [x for x in lines + [self.arm_note, self.arm_on_stop, self.length_note] if x]
 
     @property
     def slipping(self) -> list[str]:
@@ -87,6 +98,8 @@ class StaticResult:
             "span_tensions_N": [float(x) for x in self.span_tensions_N],
             "span_forces_N": None if self.span_forces_N is None else [float(x) for x in self.span_forces_N],
             "span_lengths_m": [float(x) for x in self.span_lengths_m],
+            "span_free_lengths_m": (None if self.span_free_lengths_m is None
+                                    else [float(x) for x in self.span_free_lengths_m]),
             "belt_length_m": self.belt_length_m,
             "installation_tension_N": self.installation_tension_N,
             "stretch": self.stretch,
@@ -104,6 +117,7 @@ class StaticResult:
             d["tensioner_angle_deg"] = self.tensioner_angle_deg
             d["spring_moment_Nm"] = self.spring_moment_Nm
             d["tensioner_pivot_force_N"] = self.tensioner_pivot_force_N
+            d["arm_balances_deg"] = self.arm_balances_deg
         if self.decouplers:
             d["decouplers"] = self.decouplers
         if self.arm_on_stop:
@@ -175,6 +189,7 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
             because = (": no belt could carry these loads at this installation tension (the pulleys at its ends "
                        "would need an infinite friction coefficient)" if loaded else "")
             raise StaticsError(f"span {nm} would go slack at the {what} (tension {T:.4g} N){because}", "statics")
+    _check_operating(scene, out, names, what)
     forces = critical.output_forces(scene, out, v)
     reason = None
     if v != 0.0 and not np.all(forces > 0):
@@ -188,15 +203,18 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
     inst = out["inst"]
     check_solved(scene, float(inst.tension), math.degrees(float(out["theta"])) if scene.tensioner is not None else None)
     loads = np.asarray(out["loads"])
+    wraps = np.asarray(out["wraps"])  # of the solved layout, not the installed one (the arm swings)
     res = StaticResult(
         span_names=names,
         span_tensions_N=tensions,
         span_lengths_m=np.asarray(out["lengths"]),
+        span_free_lengths_m=np.asarray(out["free_lengths"]),
+        length_note=_length_note(scene, names, np.asarray(out["end_slides"]), np.asarray(out["free_lengths"]), what),
         belt_length_m=float(inst.belt_length),
         installation_tension_N=float(inst.tension),
         stretch=float(inst.stretch),
         hub_forces_N={order[i]: hubs[i] for i in range(len(order))},
-        wrap_angles_deg={order[i]: float(np.degrees(inst.wrap[i])) for i in range(len(order))},
+        wrap_angles_deg={order[i]: float(np.degrees(wraps[i])) for i in range(len(order))},
         speed_m_s=v,
         tensioner_angle_deg=None,
         spring_moment_Nm=None,
@@ -210,7 +228,7 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
         state="operating point" if loaded else "unloaded",
         drive_torque_Nm=float(out["drive_torque"]),
         loads_Nm={bodies[i]: float(loads[i]) for i in range(len(bodies)) if loads[i] != 0.0},
-        friction=friction.assess(scene, forces, np.asarray(inst.wrap),
+        friction=friction.assess(scene, forces, wraps,
                                  np.asarray(out["lengths"]) / (np.asarray(inst.span_length) / float(inst.stretch)),
                                  drive.drive_pulley(scene)),
     )
@@ -231,6 +249,8 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
             pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
         res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
         res.arm_on_stop = _arm_on_stop(scene.tensioner, res.tensioner_angle_deg, what)
+        res.arm_balances_deg = _arm_balances(scene, np.degrees(np.asarray(out["arm_balances"])), float(inst.tension))
+        res.arm_note = _arm_note(scene.tensioner, res.arm_balances_deg, math.degrees(float(inst.arm_angle)))
     if scene.isolator is not None:  # the isolator's spring carries the drive torque
         lag = abs(float(couplings.isolator_lag(scene.isolator, res.drive_torque_Nm)))
         if lag > math.pi:
@@ -250,6 +270,74 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
             res.decouplers[d.pulley] = {"windup_deg": math.degrees(w),
                                         "moment_Nm": float(couplings.decoupler_moment(w, d.stiffness))}
     return res
+
+
+def _check_operating(scene: Scene, out: dict, names: list[str], what: str) -> None:
+    """Raise :class:`StaticsError` (one line) when the solved state ``out`` (:func:`beltjax.statics.
+    static_outputs`) is past what any belt drive carries (:func:`beltjax.statics.operating_faults`):
+    a span stretched beyond the installation's limit, or the tensioner arm wound round."""
+    from beltjax.statics import MAX_ARM_SWING, MAX_INSTALL_STRAIN
+
+    faults = {k: bool(f) for k, f in out["faults"].items()}
+    loaded = what == "operating point"
+    loads = "the mean loads ([[torque]] mean_Nm, bearing drag)"
+    key = "torque" if loaded else "statics"
+    if faults["arm_wound"]:
+        a, a0 = math.degrees(float(out["theta"])), math.degrees(float(out["inst"].arm_angle))
+        raise StaticsError(f"the tensioner arm would turn to {a:.5g} deg at the {what}, {abs(a - a0):.4g} deg from its "
+                           f"installed {a0:.4g} deg: more than {math.degrees(MAX_ARM_SWING):g} deg, beyond any "
+                           + (f"tensioner's travel; {loads} are far more than the belt carries: lower them" if loaded
+                              else "tensioner's travel"), key)
+    if faults["span_overstretched"]:
+        strain = np.asarray(out["strains"])
+        j = int(np.argmax(strain))
+        raise StaticsError(f"span {names[j]} would stretch {100 * strain[j]:.4g} % at the {what} (tension "
+                           f"{float(out['tensions'][j]):.4g} N), beyond the {100 * MAX_INSTALL_STRAIN:g} % any belt "
+                           "takes: lower " + (f"{loads} or " if loaded else "") + "the installation tension", key)
+
+
+def _length_note(scene: Scene, names: list[str], slides, lengths, state: str) -> str | None:
+    """The line saying that a span of the hybrid model has an end node more than
+    :data:`beltjax.span_flags.END_SLIDE_FRACTION` of its length (``lengths``, m) from its tangent
+    point in this ``state`` (``slides`` (n, 2) m: :func:`beltjax.drive.end_slides`), or None: its
+    free length and transverse modes are approximate by that much (as a transient's
+    :func:`beltjax.span_flags.displaced_span_ends`)."""
+    from beltjax.span_flags import END_SLIDE_FRACTION
+
+    size = np.max(np.abs(slides), axis=1)
+    j = int(np.argmax(size / lengths))
+    if scene.model.fidelity != "ancf" or not size[j] > END_SLIDE_FRACTION * lengths[j]:
+        return None
+    return (f"span {names[j]!r} of the hybrid model: its end nodes sit up to {1e3 * size[j]:.3g} mm "
+            f"({100 * size[j] / lengths[j]:.3g} % of the span) from the tangent points at the {state} (the pulleys' "
+            "turns under load carry them along the span), so the span's free length and transverse modes are "
+            "approximate by that much")
+
+
+def _arm_balances(scene: Scene, scan, tension: float) -> list[float]:
+    """The stable arm angles (deg) of the scan ``scan`` (deg, NaN between:
+    :func:`beltjax.statics.arm_balances`) where the layout holds (no idler overlapping a pulley,
+    a belt path: :func:`beltjax.validate.solved_status` at the installation tension, N)."""
+    from beltjax import validate
+
+    found = sorted(float(x) for x in scan if np.isfinite(x))
+    if len(found) < 2:  # the one found is the installation's, checked as such
+        return found
+    status, _ = validate.solved_status(scene, tension, np.asarray(found), n=len(found))
+    return [x for x, st in zip(found, status) if st == "ok"]
+
+
+def _arm_note(t, balances: list, installed: float) -> str | None:
+    """The line saying that the tensioner arm balances the installed belt at more than one angle
+    (``balances``, deg, :func:`beltjax.statics.arm_balances`) and which (``installed``, deg) the
+    installation took, or None."""
+    if len(balances) < 2:
+        return None
+    key = "arm_angle_deg" if t.arm_angle_deg is not None else "spring_preload_deg"
+    others = ", ".join(f"{x:.4g}" for x in balances if abs(x - installed) > 0.5)
+    return (f"the tensioner arm balances the installed belt at {len(balances)} angles: {installed:.4g} deg, taken "
+            f"as nearest tensioner.{key} = {float(getattr(t, key)):.4g} deg, and {others} deg; give {key} near "
+            "another to install the belt there")
 
 
 def _arm_on_stop(t, angle_deg: float, state: str) -> str | None:

@@ -50,8 +50,11 @@ from beltjax.drive import Installation, belt_slip, pivot
 from beltjax.scene import TENSIONER, Scene
 
 #: largest installation strain accepted (2 %, far beyond any belt's working strain): a
-#: belt that would need more "cannot be fitted"
+#: belt that would need more "cannot be fitted"; no static state may stretch a span further
 MAX_INSTALL_STRAIN = 0.02
+#: farthest a static state may turn the tensioner arm from its installed angle (rad, half a turn:
+#: beyond any tensioner's travel; the mean loads have wound the arm round)
+MAX_ARM_SWING = math.pi
 #: the one retry policy of the statics: Newton from the installed state, and where it fails, again
 #: with the speed (and its centrifugal and tensioner load) stepped from rest in RETRY_STEPS steps
 #: (analyse_statics, solve_at, the sweeps); a batch over speeds (Campbell diagrams) steps every
@@ -99,10 +102,10 @@ def _arm_guess(scene: Scene):
     return jnp.deg2rad(t.arm_angle_deg if t.arm_angle_deg is not None else t.spring_preload_deg)
 
 
-def _bracket_arm(scene: Scene):
-    """Grid scan for the stable root of the arm balance nearest the guess (rad; nan if none)."""
-    guess = _arm_guess(scene)
-    th = guess + jnp.linspace(-jnp.pi, jnp.pi, _ARM_GRID + 1)
+def _arm_scan(scene: Scene):
+    """Grid scan of the arm balance over the guess +- half a turn: the grid (rad), each cell's
+    linearly interpolated root (rad) and whether the cell brackets a stable root."""
+    th = _arm_guess(scene) + jnp.linspace(-jnp.pi, jnp.pi, _ARM_GRID + 1)
     r = jax.vmap(lambda x: _arm_residual(x, scene))(th)
     path, _, wrap = jax.vmap(lambda x: _arm_terms(x, scene))(th)
     ok = jnp.isfinite(r) & (wrap > 0) & (wrap < jnp.pi)
@@ -111,9 +114,24 @@ def _bracket_arm(scene: Scene):
     down = ok[:-1] & ok[1:] & (r[:-1] > 0) & (r[1:] <= 0)
     # linear interpolation inside each bracketing cell
     x = th[:-1] + r[:-1] / jnp.where(down, r[:-1] - r[1:], 1.0) * (th[1:] - th[:-1])
-    dist = jnp.where(down, jnp.abs(x - guess), jnp.inf)
+    return th, x, down
+
+
+def _bracket_arm(scene: Scene):
+    """Grid scan for the stable root of the arm balance nearest the guess (rad; nan if none)."""
+    th, x, down = _arm_scan(scene)
+    dist = jnp.where(down, jnp.abs(x - _arm_guess(scene)), jnp.inf)
     j = jnp.argmin(dist)
     return jnp.where(jnp.isfinite(dist[j]), x[j], jnp.nan), th[j], th[j + 1]
+
+
+def arm_balances(scene: Scene):
+    """Every stable balance of the tensioner arm against the installed belt within half a turn of
+    the guess (rad, to the scan's linear interpolation; NaN in the other cells, shape
+    (_ARM_GRID,)): :func:`install` takes the one nearest the guess (``tensioner.arm_angle_deg``,
+    else ``spring_preload_deg``)."""
+    _, x, down = _arm_scan(scene)
+    return jnp.where(down, x, jnp.nan)
 
 
 def _solve_arm(scene: Scene):
@@ -187,6 +205,24 @@ def installation_faults(scene: Scene, inst: Installation) -> dict:
     return dict(no_arm_balance=jnp.asarray(scene.tensioner is not None) & ~jnp.isfinite(inst.arm_angle),
                 belt_slack=~jnp.isfinite(lam) | (lam <= 1.0),
                 belt_overstretched=lam - 1.0 > MAX_INSTALL_STRAIN)
+
+
+def operating_faults(scene: Scene, qi, inst: Installation) -> dict:
+    """Whether the static state ``qi`` (rad; a solved equilibrium) is past what any belt drive
+    carries, by cause (JAX bools; pure, vmappable): the one such test of statics, sweeps, responses
+    over speed and optimisation.  span_overstretched: a span stretched more than
+    MAX_INSTALL_STRAIN of its unstretched length; arm_wound: the tensioner arm turned more than
+    MAX_ARM_SWING from its installed angle.  Either means the mean loads overpower the belt (a
+    solution of the equations, not of a drive)."""
+    _, theta = drive.angles_and_arm(qi, scene, inst)
+    return dict(span_overstretched=jnp.max(operating_strains(scene, qi, inst)) > MAX_INSTALL_STRAIN,
+                arm_wound=jnp.asarray(scene.tensioner is not None) & (jnp.abs(theta - inst.arm_angle) > MAX_ARM_SWING))
+
+
+def operating_strains(scene: Scene, qi, inst: Installation):
+    """Each span's strain (n,) (-) at the state ``qi`` (rad): its belt length over its unstretched
+    length, less 1 (as :func:`beltjax.drive.element_length`)."""
+    return drive.span_lengths(qi, scene, inst) / (inst.span_length / inst.stretch) - 1.0
 
 
 def check_installation(scene: Scene, inst: Installation) -> None:
@@ -386,7 +422,12 @@ def _statics_core(scene: Scene, speed, loaded, steps: int = 1):
 
 def static_outputs(scene, qi, inst, speed, loaded: bool = False):
     """Outputs at equilibrium ``qi``, belt speed ``speed`` (m/s): q, theta (rad), tensions, hubs (N),
-    lengths (m), the drive pulley's torque (N m) and the mean loads on the bodies (N m)."""
+    lengths (m; the model's, between its end nodes), free_lengths (m; tangent to tangent,
+    :func:`beltjax.drive.free_lengths`), end_slides (m, (n, 2): :func:`beltjax.drive.end_slides`),
+    strains (-, :func:`operating_strains`), faults
+    (:func:`operating_faults`), wraps (rad, of the solved layout: an arm's swing turns them,
+    :func:`beltjax.drive.wraps`), the drive pulley's torque (N m), the mean loads on the bodies
+    (N m) and with a tensioner arm_balances (rad, :func:`arm_balances`)."""
     q = drive.full_coordinates(qi, scene, inst)
     _, theta = drive.angles_and_arm(qi, scene, inst)
     return dict(
@@ -394,6 +435,10 @@ def static_outputs(scene, qi, inst, speed, loaded: bool = False):
         tensions=drive.span_tensions(q, scene, inst),
         hubs=drive.hub_forces(q, scene, inst, speed),
         lengths=drive.full_span_lengths(q, scene),
+        wraps=drive.wraps(qi, scene, inst), free_lengths=drive.free_lengths(qi, scene, inst),
+        end_slides=drive.end_slides(qi, scene, inst),
+        **({} if scene.tensioner is None else {"arm_balances": arm_balances(scene)}),
+        strains=operating_strains(scene, qi, inst), faults=operating_faults(scene, qi, inst),
         drive_torque=drive.drive_torque(qi, scene, inst, speed, loaded),
         loads=(loaded * drive.mean_body_loads(scene, inst, speed)[:, 2] if loaded is not False
                else jnp.zeros(len(drive.body_names(scene)))),

@@ -50,7 +50,8 @@ def statics_table(res) -> str:
     unloaded = res.unloaded["span_tensions_N"] if res.unloaded else None
     head = f"{'span':<26} {'length [m]':>11} {'tension [N]':>12}" + (f" {'unloaded [N]':>13}" if unloaded else "")
     lines += ["", head]
-    for i, (name, L, T) in enumerate(zip(res.span_names, res.span_lengths_m, res.span_tensions_N)):
+    free = res.span_lengths_m if res.span_free_lengths_m is None else res.span_free_lengths_m  # tangent to tangent
+    for i, (name, L, T) in enumerate(zip(res.span_names, free, res.span_tensions_N)):
         lines.append(f"{name:<26} {float(L):>11.5f} {float(T):>12.2f}" + (f" {unloaded[i]:>13.2f}" if unloaded else ""))
     lines += ["", f"{'hub (force of the belt)':<26} {'Fx [N]':>10} {'Fy [N]':>10} {'|F| [N]':>10} {'wrap [deg]':>11}"]
     for name, F in res.hub_forces_N.items():

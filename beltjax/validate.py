@@ -398,6 +398,21 @@ def speeds(values, key: str = "rpm", field: str = "drive.rpm") -> np.ndarray:
     return v
 
 
+def rpm_range(a: float, b: float, step: float, max_speeds: int) -> np.ndarray:
+    """The speeds (rpm) of a range A:B:STEP (finite, 0 <= A <= B, STEP > 0: checked by the
+    caller): A, A + STEP, ... up to B, and B itself, never beyond it (the last step shorter where
+    STEP does not divide B - A; an end within 1e-9 STEP of a grid point is that point).  The one
+    reading of ``--rpm`` and of a sweep's ``rpm``.  More than ``max_speeds`` speeds is a
+    ValueError saying how many (before any array is made)."""
+    k = math.floor((b - a) / step + 1e-9)  # whole steps from A to at most B
+    on_grid = abs(b - (a + k * step)) <= 1e-9 * step
+    n = k + 1 + (not on_grid)
+    if n > max_speeds:
+        raise ValueError(f"gives {n} speeds, at most {max_speeds} allowed")
+    r = a + step * np.arange(k + 1, dtype=float)
+    return np.append(r[:-1] if on_grid else r, b)
+
+
 def count(value, key: str) -> int:
     """``value`` as an int if it is an integer >= 1 (a bool is not), else a one-line
     :class:`BeltjaxError` naming ``key`` (an API argument: modes kept, cases per chunk, ...)."""

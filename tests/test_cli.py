@@ -7,6 +7,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from beltjax.cli import main
@@ -98,3 +99,34 @@ def test_campbell_orders_beyond_the_schema_are_one_line(tmp_path):
     assert r.stderr.strip() == ("beltjax: error: orders[1]: must lie in [0, 1000] - (cycles per revolution: engines "
                                 "excite orders up to about 20), got 1e+300"), r.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize("text,speeds", [
+    ("800:1000:300", [800.0, 1000.0]),  # B is not on the grid: it ends the range, nothing beyond it
+    ("800:1100:300", [800.0, 1100.0]),
+    ("0:1:0.1", [0.1 * i for i in range(10)] + [1.0]),  # round-off neither adds a speed past B nor drops B
+    ("0:0.3:0.1", [0.0, 0.1, 0.2, 0.3]),
+    ("600:6000:100", [600.0 + 100 * i for i in range(55)]),
+    ("5:5:1", [5.0]),
+    ("0:10:4", [0.0, 4.0, 8.0, 10.0]),
+])
+def test_a_speed_range_runs_from_a_by_step_and_ends_at_b(text, speeds):
+    """--rpm A:B:STEP and a sweep's rpm = [A, B, STEP] read alike (validate.rpm_range): every
+    speed in [A, B], B itself the last."""
+    from beltjax import cli, sweep
+
+    got = cli._rpm_range(text)
+    np.testing.assert_allclose(got, speeds, rtol=1e-12, atol=0)
+    assert got[-1] == float(text.split(":")[1]) and got[0] == float(text.split(":")[0])
+    assert np.all(np.diff(got) > 0)
+    np.testing.assert_array_equal(sweep._rpm_range("rpm", [float(x) for x in text.split(":")]), got)
+
+
+def test_a_speed_range_with_too_many_speeds_is_one_line(capsys, tmp_path):
+    from beltjax.sweep import SweepError, _rpm_range
+
+    assert main(["campbell", "x.toml", "--rpm", "0:1e6:0.01", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "argument --rpm: --rpm gives 100000001 speeds, at most" in err, err
+    with pytest.raises(SweepError, match=r"^rpm: gives 100000001 speeds, at most"):
+        _rpm_range("rpm", [0.0, 1e6, 0.01])

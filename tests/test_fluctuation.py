@@ -161,9 +161,14 @@ def test_bad_traces_name_the_file(tmp_path, rows, x, cause):
     assert "fluctuation[0].file" in str(e.value) and cause in str(e.value)
 
 
-def test_orders_need_their_effect():
-    with pytest.raises(BeltjaxError, match="speed_fluctuation"):
-        loads_scene(_scene(_order(2.0, 0.5)).replace('"speed_fluctuation"]', "]"))
+@pytest.mark.parametrize("tables,key", [
+    (_order(2.0, 0.5), "fluctuation[0].order"),
+    ('[[fluctuation]]\npulley = "crank"\nfrequency_hz = 40.0\namplitude_deg = 0.1\n', "fluctuation[0].frequency_hz"),
+])
+def test_orders_need_their_effect(tables, key):
+    """Without its effect a [[fluctuation]] table is an error naming the key the file gives."""
+    with pytest.raises(BeltjaxError, match=re.escape(f'{key}: given but "speed_fluctuation" is not in model.effects')):
+        loads_scene(_scene(tables).replace(', "speed_fluctuation"]', "]"))
 
 
 def test_amplitude_table_interpolation_equals_jnp_interp():

@@ -190,6 +190,50 @@ def test_a_load_the_belt_cannot_carry_is_a_slack_span():
         statics.analyse_statics(loads_scene(_two_pulley("rotational", torque=40.0)))
 
 
+@pytest.mark.parametrize("mean", [5e4, -1e5])
+def test_loads_that_wind_the_arm_round_are_refused(mean, tmp_path, capsys):
+    """A load the belt cannot carry whose equations still have a solution, with the tensioner arm
+    wound turns round and the spans stretched many times over: refused (one line naming the
+    loads, exit 2, no files), from the command line and the Python API alike."""
+    from beltjax.errors import BeltjaxError
+
+    path = tmp_path / "wound.toml"
+    path.write_text(FEAD.replace('pulley = "alternator"\nmean_Nm = 3.0', f'pulley = "alternator"\nmean_Nm = {mean}'))
+    assert main(["statics", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("beltjax: error: torque: the tensioner arm would turn to "), err
+    assert "more than 180 deg" in err and not (tmp_path / "out").exists()
+    with pytest.raises(BeltjaxError, match="tensioner arm would turn to") as exc:
+        statics.analyse_statics(load_scene(path))
+    assert str(exc.value) in err
+
+
+def test_operating_faults_in_closed_form():
+    """The one test of a state past what a belt carries (statics, sweeps, responses, optimisation):
+    a span's strain over 2 % of its unstretched length, the arm turned over half a turn; a state
+    that only turns a pulley stretches nothing."""
+    sc = loads_scene(_tensioner())
+    inst = statics.install(sc)
+    qi = np.zeros(drive.n_independent(sc))
+    base = statics.operating_faults(sc, qi, inst)
+    assert not any(bool(v) for v in base.values())
+    assert float(np.max(np.abs(statics.operating_strains(sc, qi, inst) - (float(inst.stretch) - 1)))) < 1e-12
+    arm = [i for i in range(len(qi)) if float(drive.angles_and_arm(np.eye(len(qi))[i], sc, inst)[1] - inst.arm_angle) != 0]
+    assert len(arm) == 1
+    q = np.zeros(len(qi))
+    q[arm[0]] = 1.01 * math.pi  # the arm turned just over half a turn (its spans stretch too)
+    assert bool(statics.operating_faults(sc, q, inst)["arm_wound"])
+    s0 = np.asarray(statics.operating_strains(sc, qi, inst))
+    per_rad = np.array([np.asarray(statics.operating_strains(sc, e, inst)) - s0 for e in np.eye(len(qi))])
+    per_rad[arm[0]] = 0.0  # a pulley's turn slides the belt along its spans: linear in its angle
+    k, j = np.unravel_index(np.argmax(per_rad), per_rad.shape)
+    for strain, over in ((0.019, False), (0.021, True)):  # pulley k turned to stretch span j this far
+        q = np.zeros(len(qi))
+        q[k] = (strain - s0[j]) / per_rad[k, j]
+        assert float(statics.operating_strains(sc, q, inst)[j]) == pytest.approx(strain, rel=1e-9)
+        assert bool(statics.operating_faults(sc, q, inst)["span_overstretched"]) is over
+
+
 def test_a_loaded_drive_past_its_critical_speed_is_told_so_not_blamed_on_its_loads():
     """Loaded and far past its critical speed, the tensioner drive's operating point has slack
     spans; the cause is the speed (its unloaded state is past the critical speed too), and the
@@ -260,14 +304,22 @@ FEAD = scene_text("fead_8pulley.toml")
 def test_sweep_columns_of_the_operating_point(tmp_path, capsys):
     """A sweep of a loaded drive reports the operating point (tensions, drive torque, the arcs'
     friction and slip margins) case by case, equal to the statics of each case; a case that would
-    slip is named in sweep.json and in a warning."""
+    slip is named in sweep.json and in a warning; one whose loads would stretch a span past 2 %
+    (installed at 1.98 %) is flagged, as the statics refuse it."""
+    from beltjax.errors import BeltjaxError
+
     sweep = tmp_path / "sweep.toml"
-    sweep.write_text('outputs = ["statics"]\n[[grid]]\nparameter = "belt.static_tension"\nvalues = [150.0, 300.0]\n')
+    sweep.write_text('outputs = ["statics"]\n[[grid]]\nparameter = "belt.static_tension"\n'
+                     'values = [150.0, 300.0, 2370.0]\n')
     (tmp_path / "fead.toml").write_text(FEAD)
     assert main(["sweep", str(tmp_path / "fead.toml"), str(sweep), "--out", str(tmp_path / "out")]) == 0
     import csv
 
     rows = list(csv.DictReader(open(tmp_path / "out" / "sweep.csv")))
+    assert [row["status"] for row in rows] == ["ok", "ok", "span_overstretched"]
+    with pytest.raises(BeltjaxError, match=r"would stretch 2\.01\d % at the operating point"):
+        statics.analyse_statics(loads_scene(FEAD.replace("static_tension = 300.0", "static_tension = 2370.0")))
+    rows = rows[:2]
     for row in rows:
         sc = loads_scene(FEAD.replace("static_tension = 300.0", f"static_tension = {row['belt.static_tension']}"))
         r = statics.analyse_statics(sc)
@@ -279,7 +331,7 @@ def test_sweep_columns_of_the_operating_point(tmp_path, capsys):
     assert float(rows[0]["min_slip_margin"]) < 0 < float(rows[1]["min_slip_margin"])  # 150 N slips at the crank
     report = json.loads((tmp_path / "out" / "sweep.json").read_text())
     assert report["slipping"]["min_slip_margin"]["cases"] == [0]
-    assert "WARNING: in 1 of 2 cases the belt would slip at the operating point" in capsys.readouterr().out
+    assert "WARNING: in 1 of 3 cases the belt would slip at the operating point" in capsys.readouterr().out
 
 
 def test_optimize_with_a_minimum_slip_margin(tmp_path):
@@ -411,3 +463,75 @@ def test_published_flat_belt_drive_shigley_example_17_1():
     assert tight == pytest.approx(F1, rel=1e-3) and slack == pytest.approx(F2, rel=1e-3)
     assert abs(f["friction_needed"] - 0.328) < 1e-3
     assert f["slip_margin"] == pytest.approx(1 - f["friction_needed"] / 0.8, rel=1e-12) and f["slip_margin"] > 0.5
+
+
+def test_wraps_and_slip_margins_are_those_of_the_solved_arm_angle():
+    """Under load the arm swings off its installed angle, turning the wraps of its idler and its
+    neighbours: statics.json's wraps and the arcs' friction are those of the solved layout (equal
+    to the tangent geometry at the solved arm angle), in the operating point and the unloaded state."""
+    sc = loads_scene(_tensioner(drag=0.0).replace(f"mean_Nm = {M_ALT}", "mean_Nm = 20.0"))
+    r = statics.analyse_statics(sc)
+    order = sc.route.order
+    for state, angle, wraps, arcs in ((r, r.tensioner_angle_deg, r.wrap_angles_deg, r.friction),
+                                      (None, r.unloaded["tensioner_angle_deg"], r.unloaded["wrap_angles_deg"],
+                                       r.unloaded["friction"])):
+        exact = np.degrees(np.asarray(sc.geometry(np.radians(angle), check=False).wrap))
+        got = np.array([wraps[k] for k in order])
+        np.testing.assert_allclose(got, exact, rtol=0, atol=1e-9)
+        np.testing.assert_allclose([arcs[k]["wrap_deg"] for k in order], exact, rtol=0, atol=1e-9)
+    installed = np.degrees(np.asarray(r.inst.wrap))
+    loaded = np.array([r.wrap_angles_deg[k] for k in order])
+    assert np.max(np.abs(loaded - installed)) > 0.5  # the arm's swing turned them (else this tests nothing)
+    F = dict(zip(r.span_names, r.span_forces_N))
+    k = order.index("alternator")
+    need = math.log(F["alternator-crank"] / F["tensioner-alternator"]) / math.radians(loaded[k])  # capstan law
+    assert r.friction["alternator"]["friction_needed"] == pytest.approx(need, rel=1e-9)
+
+
+def test_free_span_lengths_and_the_hybrid_models_end_node_note():
+    """statics.json gives each span's free length (tangent to tangent at the solved arm angle,
+    equal to the layout's own geometry there) beside the model's (between its end nodes, which the
+    pulleys' turns under load slide along the span: the difference is the two ends' slides).
+    Where a hybrid span's end node sits more than END_SLIDE_FRACTION of the span from its tangent
+    point a warning says so, as in a transient; the rotational model, which has no transverse
+    modes, gives none."""
+    from beltjax.span_flags import END_SLIDE_FRACTION
+    from beltjax.static_state import _length_note
+
+    text = _tensioner(drag=0.0).replace(f"mean_Nm = {M_ALT}", "mean_Nm = 20.0")
+    sc = loads_scene(text)
+    r = statics.analyse_statics(sc)
+    exact = np.asarray(sc.geometry(np.radians(r.tensioner_angle_deg), check=False).span_length)
+    np.testing.assert_allclose(r.span_free_lengths_m, exact, rtol=1e-12)
+    assert r.to_json()["span_free_lengths_m"] == pytest.approx(list(exact), rel=1e-12)
+    slides = np.asarray(drive.end_slides(r.qi, sc, r.inst))
+    np.testing.assert_allclose(r.span_lengths_m - r.span_free_lengths_m, slides[:, 1] - slides[:, 0], atol=1e-12)
+    frac = np.max(np.abs(slides), axis=1) / r.span_free_lengths_m
+    j = int(np.argmax(frac))
+    assert frac[j] > END_SLIDE_FRACTION  # the alternator's load turned the pulleys this far (else no test)
+    assert r.length_note is None  # rotational
+    hybrid = loads_scene(text.replace('fidelity = "rotational"', 'fidelity = "ancf"'))  # same statics (tested)
+    note = _length_note(hybrid, r.span_names, slides, r.span_free_lengths_m, "operating point")
+    assert note.startswith(f"span {r.span_names[j]!r} of the hybrid model: its end nodes sit up to "
+                           f"{1e3 * frac[j] * r.span_free_lengths_m[j]:.3g} mm ({100 * frac[j]:.3g} % of the span)")
+    small = slides * 0.99 * END_SLIDE_FRACTION / frac[j]
+    assert _length_note(hybrid, r.span_names, small, r.span_free_lengths_m, "operating point") is None
+
+
+def test_an_arm_that_balances_the_belt_at_two_angles_is_told():
+    """The thesis' tensioner bench: the spring balances the installed belt at two stable arm
+    angles (an unstable one between).  The installation takes the one nearest the scene's
+    arm_angle_deg and says so, naming the other; given near the other, it installs there."""
+    sc = loads_scene(_tensioner())
+    r = statics.analyse_statics(sc, with_unloaded=False)
+    low, high = r.arm_balances_deg
+    installed = math.degrees(float(r.inst.arm_angle))
+    assert low == pytest.approx(installed, abs=0.01) and high == pytest.approx(117.4, abs=0.05)  # (README)
+    for a in (low, high):  # each a root of the arm's balance (to the scan's interpolation)
+        assert abs(float(statics._arm_residual(math.radians(a), sc))) < 1e-3 * float(r.spring_moment_Nm)
+    assert r.arm_note in r.warnings and f"taken as nearest tensioner.arm_angle_deg = 46.5 deg, and {high:.4g} deg" in r.arm_note
+    other = statics.analyse_statics(loads_scene(_tensioner().replace("arm_angle_deg = 46.5 ", f"arm_angle_deg = {high:.1f} ")),
+                                    with_unloaded=False)
+    assert math.degrees(float(other.inst.arm_angle)) == pytest.approx(high, abs=0.01)
+    assert other.arm_balances_deg == pytest.approx([low, high], abs=1e-3)  # (the scan, about another guess)
+    assert statics.analyse_statics(loads_scene(FEAD), with_unloaded=False).arm_note is None  # one balance

@@ -360,7 +360,8 @@ def test_speeds_the_shooting_gives_up_settle(monkeypatch):
                 settling, mult = np.where(float(np.asarray(settle)[0]) > 1.0, 1e-4, 0.5) + 0 * rpm, np.nan + 0 * rpm
             one = np.ones_like(rpm)
             cycles = np.outer(one, [5.0, 6.0, 7.0, 0, 0, 0, 0, 0] if settings.method == "shooting" else np.zeros(8))
-            return {"settling": settling, "solver_ok": one, "converged": one, "supercritical": 1.0 * (rpm == 900.0),
+            return {"settling": settling, "solver_ok": one, "converged": one, "overloaded": 0 * one,
+                    "supercritical": 1.0 * (rpm == 900.0),
                     "min_span_force_N": 100 * one, "steps": 10 * one, "t_end_s": 0.1 * one,
                     "shooting_iterations": 3 * one, "shooting_cycle_steps": cycles, "floquet_multiplier": mult, "arm_angle_deg:p2p": rpm / 1000,
                     "hub_forces_N": np.zeros((len(rpm), 4, 3, 2)), "t_s": np.zeros((len(rpm), 4)),
@@ -395,7 +396,7 @@ def test_a_failed_rerun_keeps_the_settled_numbers(monkeypatch):
             one = np.ones_like(rpm)
             shoot = settings.method == "shooting"
             return {"settling": (np.inf if shoot else 0.1) * one, "solver_ok": (0.0 if long else 1.0) * one,
-                    "converged": one, "supercritical": 0 * one, "min_span_force_N": 100 * one,
+                    "converged": one, "supercritical": 0 * one, "overloaded": 0 * one, "min_span_force_N": 100 * one,
                     "steps": 10 * one, "t_end_s": 0.1 * one, "shooting_iterations": 3 * one,
                     "shooting_cycle_steps": np.zeros((len(rpm), 8)), "floquet_multiplier": np.nan * one,
                     "arm_angle_deg:p2p": (np.nan if long else 1.0) * one + (2.0 if shoot else 0.0),
@@ -584,7 +585,7 @@ def test_sweep_response_settles_where_the_shooting_gave_up(monkeypatch):
                     status, past = next(cases)
                     r["response_settling"][i], r["code"][i] = np.inf, sweep.STATUS.index(status)
                     r["response_rerun"][i] = orders.needs_rerun(dict(settling=np.inf, solver_ok=1.0, converged=1.0,
-                                                                     supercritical=past))
+                                                                     supercritical=past, overloaded=0.0))
         return got
 
     monkeypatch.setattr(batch, "_run_local", run_local)

@@ -131,7 +131,7 @@ def test_beside_an_accelerator_the_hybrid_runs_on_the_host(monkeypatch):
             calls.append((settings.method, single, n, jax.config.jax_default_device))
             one = np.ones(n)
             return {"settling": np.where(float(np.asarray(settle)[0]) > 0.5, 1e-4, 0.5) * one, "solver_ok": one,
-                    "converged": one, "supercritical": 0 * one, "min_span_force_N": 100 * one, "steps": 10 * one,
+                    "converged": one, "supercritical": 0 * one, "overloaded": 0 * one, "min_span_force_N": 100 * one, "steps": 10 * one,
                     "t_end_s": one, "shooting_iterations": 0 * one, "shooting_cycle_steps": np.zeros((n, 12)),
                     "floquet_multiplier": np.nan * one, "arm_angle_deg:p2p": one,
                     "hub_forces_N": np.zeros((n, 4, 3, 2)), "t_s": np.zeros((n, 4)), "max_friction_needed": np.zeros((n, 3))}

@@ -40,7 +40,7 @@ Units: SI throughout (m, rad, N, N m, kg, kg m^2, s).
 """
 
 from beltjax.drive.topology import GRAVITY, Installation, belt_speed, body_names, canonical, drive_pulley, element_length, flexible, is_free, n_full, n_independent, n_rigid, n_span_coordinates, section, span_elements, span_names, static_dofs, statics_scene, travel_coordinate, travel_follows_drive  # noqa: F401
-from beltjax.drive.kinematics import _body_coordinates, _centers, _moved_tangents, _rim_slides, _span_ends, _split, angles_and_arm, arm_row, belt_travel, full_coordinates, installed_coordinates, end_slides, n_reaction_points, rotor_angles, span_lengths, span_lengths_and_jacobian, split_full, wraps  # noqa: F401
+from beltjax.drive.kinematics import _body_coordinates, _centers, _moved_tangents, _rim_slides, _span_ends, _split, angles_and_arm, arm_row, belt_travel, full_coordinates, installed_coordinates, end_slides, free_lengths, n_reaction_points, rotor_angles, span_lengths, span_lengths_and_jacobian, split_full, wraps  # noqa: F401
 from beltjax.drive.effects import MODULES as EFFECT_MODULES, Effect, Effects, belt_weight_slide_moments, effects_of, span_dissipation  # noqa: F401
 from beltjax.drive.forces import bar_axial_force, has_mean_loads, lasting_loads, mean_body_loads, span_potential, _window, body_forces, body_masses, full_forces, full_mass_matrix, span_forces, span_load_force, spring_moment, torque  # noqa: F401
 from beltjax.drive.rotational import BodiesJacobian, _bar_accelerations, bar_accelerations, bodies_jacobian  # noqa: F401

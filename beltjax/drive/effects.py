@@ -68,13 +68,13 @@ class Effect(eqx.Module):
                 owners = [("belt", scene.belt)]
             elif group == "pulley":
                 owners = [(f"pulley[{i}]", p) for i, p in enumerate(scene.pulleys)]
-            elif group == "fluctuation":
-                owners = [(x.key or f"fluctuation[{i}]", x) for i, x in enumerate(scene.fluctuations)]
-                attr = "rate" if attr in ("order", "frequency_hz") else attr
+            elif group == "fluctuation":  # order or frequency_hz, as the table gives it, is the field rate
+                owners = [(x.key or f"fluctuation[{i}]", x) for i, x in enumerate(scene.fluctuations)
+                          if attr not in ("order", "frequency_hz") or (attr == "order") == (x.per == "rev")]
             else:
                 owners = [(group, getattr(scene, group))] if getattr(scene, group) is not None else []
             for prefix, obj in owners:
-                v = getattr(obj, attr)
+                v = getattr(obj, "rate" if group == "fluctuation" and attr in ("order", "frequency_hz") else attr)
                 default = _defaults(type(obj)).get(attr, 0.0)
                 if v is not None and float(np.max(np.abs(np.asarray(v) - default))) > 0:
                     out.append(f"{prefix}.{attr}")

@@ -215,6 +215,16 @@ def span_lengths(qi, scene: Scene, inst: Installation):
     return tl.length + (sr - sr[nxt]) * dpsi + slides - inst.creep
 
 
+def free_lengths(qi, scene: Scene, inst: Installation):
+    """The spans' free lengths (n,) m at q_i: tangent point to tangent point of the layout moved by
+    the arm (what a real span's transverse modes see).  :func:`span_lengths` differs by the
+    rim slides and r dpsi: the model's end nodes are points of the belt, carried along the rims by
+    the pulleys' turns and the arm's swing."""
+    _, theta = angles_and_arm(qi, scene, inst)
+    centers, radii = _centers(theta, scene, inst)
+    return _moved_tangents(centers, radii, scene, inst)[0].length
+
+
 def wraps(qi, scene: Scene, inst: Installation):
     """Wrap angles (n,) rad of the layout at q_i: the installed ones, each turned by how far its
     exit span's direction turned less its entry span's, s (dpsi_i - dpsi_{i-1})

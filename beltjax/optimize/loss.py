@@ -81,19 +81,21 @@ def measures(scene: Scene, problem: Problem, x, rpm=None) -> dict:
     _, theta = drive.angles_and_arm(qi, sc, inst)
     tensions = drive.span_tensions(q, sc, inst)
     c, r = inst.centers, inst.radii
+    wraps = drive.wraps(qi, sc, inst)  # of the solved layout (an arm's swing turns them)
     m = dict(
-        wrap_deg=jnp.degrees(inst.wrap), tensions_N=tensions, span_lengths_m=drive.full_span_lengths(q, sc),
+        wrap_deg=jnp.degrees(wraps), tensions_N=tensions, span_lengths_m=drive.full_span_lengths(q, sc),
         hub_N=drive.hub_forces(q, sc, inst, v0), arm_deg=jnp.degrees(theta),
         gaps_m=jnp.stack([jnp.linalg.norm(c[i] - c[j]) - r[i] - r[j] for i, j in _pairs(len(r))]),
         freqs_hz=freqs[1:], span_weights=weights[1:], qi_speeds=qs[1:], good=good[1:], span_force_N=force,
         qi=qi, q=q,
     )
-    ok = (~jnp.any(jnp.stack(list(statics.installation_faults(sc, inst).values())))
-          & jnp.all((inst.wrap > 0) & (inst.wrap < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0)
+    faults = {**statics.installation_faults(sc, inst), **statics.operating_faults(sc, qi, inst)}
+    ok = (~jnp.any(jnp.stack(list(faults.values())))
+          & jnp.all((wraps > 0) & (wraps < 2 * jnp.pi)) & jnp.all(good) & jnp.all(tensions > 0)
           & jnp.all(force > 0) & ~couplings.static_overrun(qi, sc, inst))
     finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(a)) for a in m.values()]))
     if any(c.kind == "min_slip_margin" for c in problem.constraints):  # the arcs' slip margins (capstan law)
-        m["slip_margins"] = friction.arc_margins(sc, force[0], inst.wrap)[1]
+        m["slip_margins"] = friction.arc_margins(sc, force[0], wraps)[1]
         ok = ok & jnp.all(jnp.isfinite(m["slip_margins"]))
     motion = [o for o in problem.objectives if o.kind == "arm_motion"]
     if motion:  # the periodic steady state over each band (beltjax.orders): the arm's peak-to-peak

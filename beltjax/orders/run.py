@@ -35,12 +35,13 @@ MAX_SPEEDS = 2000
 MAX_SETTLE_S = 100.0
 #: samples per excitation cycle accepted
 MIN_SAMPLES, MAX_SAMPLES = 16, 4096
-#: the status of a speed, worst first (span_slack: a span's force on the pulleys, its tension less
+#: the status of a speed, worst first (overloaded: the mean loads would stretch a span past 2 % or
+#: wind the tensioner arm round, :func:`beltjax.statics.operating_faults`; span_slack: a span's force on the pulleys, its tension less
 #: rhoA c^2 lam with transport, fell to 0 or below in the cycle: the belt lifts off, no grip)
-STATUS = ("not_converged", "supercritical", "solver_failed", "span_slack", "not_settled", "ok")  # first cause first
+STATUS = ("not_converged", "overloaded", "supercritical", "solver_failed", "span_slack", "not_settled", "ok")  # first cause first
 #: the statuses that flag a computed cycle, whose numbers are kept beside the flag (a span going slack
 #: in the cycle, a cycle not yet repeating); every other status but "ok" leaves no state to report
-#: (statics not converged, an operating point past a span's critical speed, a failed transient): its
+#: (statics not converged, an overloaded operating point, one past a span's critical speed, a failed transient): its
 #: numbers are NaN.  The one policy of responses over speed and of sweeps (beltjax.sweep.batch).
 FLAGS_KEEPING_NUMBERS = ("span_slack", "not_settled")
 
@@ -62,12 +63,12 @@ def needs_rerun(out: dict, settle_tol: float = SETTLE_TOL):
     """True (numpy or JAX, per speed or case) where the periodic state was not reached: the
     settling residual (-) above ``settle_tol`` (inf where the shooting found no attracting or neutral cycle)
     while the statics converged, the transient reached its end and the operating point is below
-    the critical speed (past it a speed is flagged, not run again).  ``out``: the arrays
-    ``settling``, ``solver_ok``, ``converged`` and ``supercritical`` of
+    the critical speed and not overloaded (such a speed is flagged, not run again).  ``out``: the
+    arrays ``settling``, ``solver_ok``, ``converged``, ``supercritical`` and ``overloaded`` of
     :func:`~beltjax.orders.steady.steady_case`.  The one rule of :func:`response_over_speed` and
     of a sweep's ``response`` output."""
     return (~(out["settling"] <= settle_tol) & (out["solver_ok"] > 0.5) & (out["converged"] > 0.5)
-            & (out["supercritical"] < 0.5))
+            & (out["supercritical"] < 0.5) & (out["overloaded"] < 0.5))
 
 
 def fallback_passes(method: str, settle_s: float) -> list[tuple[float, str]]:
@@ -267,6 +268,7 @@ def _status(out: dict, settle_tol: float) -> list[str]:
     conds = dict(
         not_converged=out["converged"] < 0.5,
         solver_failed=out["solver_ok"] < 0.5,
+        overloaded=out["overloaded"] > 0.5,
         supercritical=out["supercritical"] > 0.5,
         span_slack=out["min_span_force_N"] <= 0.0,
         not_settled=~(out["settling"] <= settle_tol),

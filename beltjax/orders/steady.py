@@ -218,7 +218,8 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
     did not converge to an attracting, or without gradients neutral, cycle or its prediction was not
     confirmed: :func:`~beltjax.orders.shooting.prediction_confirmed`); ``shooting_iterations``, ``shooting_cycle_steps``
     (each Newton cycle's steps) and ``floquet_multiplier`` (the cycle's largest, -; 0, zeros and
-    nan for a settling transient); ``converged`` (statics) and
+    nan for a settling transient); ``converged`` (statics), ``overloaded`` (the operating point
+    past what a belt carries: :func:`beltjax.statics.operating_faults`) and
     ``solver_ok`` (the transient reached the end) and ``supercritical`` (a span past its critical
     speed at the operating point: :mod:`beltjax.critical`) as 1.0 / 0.0; ``min_span_force_N``: the
     least force of a span on its pulleys over the cycle (N; with ``transport`` its tension less
@@ -237,6 +238,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         qi, inst, (conv, _, _) = statics.equilibrium(sc, statics.install(sc), speed=v, loaded=loaded)
     else:
         qi, inst, conv = solved
+    overloaded = jnp.any(jnp.stack(list(statics.operating_faults(sc, qi, inst).values())))
     torque = drive.drive_torque(qi, sc, inst, v, loaded)
     qi = isolator_wind_up(sc, inst, qi, torque)
     y0 = start_vector(sc, inst, qi, jnp.zeros_like(qi))
@@ -322,6 +324,7 @@ def steady_case(scene: Scene, values: dict, rpm, settle_s, settings: Settings, s
         out["shooting_cycle_steps"] = jnp.zeros(shooting.MAX_ITERATIONS)
     out["converged"] = conv
     out["supercritical"] = critical.supercritical(sc, qi, inst, v).astype(jnp.float64)
+    out["overloaded"] = overloaded.astype(jnp.float64)
     out["solver_ok"] = (sol.result == diffrax.RESULTS.successful).astype(jnp.float64)
     out["t_end_s"] = ts[-1]
     out["steps"] = steps

@@ -121,7 +121,9 @@ cases) give ``invalid_value`` (a value outside the parameter's range of
 neighbours), ``no_belt_path`` (a degenerate wrap, a span through a pulley, spans
 crossing) and ``ill_conditioned`` (a derived float64 limit); then a belt that cannot
 be fitted (slack, over-stretched, no tensioner balance), statics not converged
-(retried with speed stepping), a span gone slack, non-finite outputs, ``supercritical``
+(retried with speed stepping), a span gone slack, loads that overpower the belt
+(``arm_wound``: the tensioner arm turned over half a turn; ``span_overstretched``: a span past
+2 %: :func:`beltjax.statics.operating_faults`), non-finite outputs, ``supercritical``
 (the drive speed past the critical belt speed: a span's force on the pulleys <= 0,
 :mod:`beltjax.critical`); ``unstable`` (modes that grow) keeps the statics and has NaN
 frequencies.  The run summary counts them by cause.  A sweep accepts exactly what a scene

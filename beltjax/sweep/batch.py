@@ -74,9 +74,10 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
     names = ["no_arm_balance", "belt_slack", "belt_overstretched"]
     conds = [faults[k] for k in names]
     codes = [_CODE[k] for k in names]
-    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), critical.supercritical(sc, qi, inst, v),
-              couplings.static_overrun(qi, sc, inst)]
-    codes += [_CODE["not_converged"], _CODE["span_slack"], _CODE["supercritical"], _CODE["decoupler_overrun"]]
+    conds += [conv < 0.5, ~jnp.all(out["tensions"] > 0), out["faults"]["arm_wound"], out["faults"]["span_overstretched"],
+              critical.supercritical(sc, qi, inst, v), couplings.static_overrun(qi, sc, inst)]
+    codes += [_CODE[k] for k in ("not_converged", "span_slack", "arm_wound", "span_overstretched", "supercritical",
+                                 "decoupler_overrun")]
     res: dict[str, jax.Array] = {}
     if "statics" in outputs:
         res["span_tensions_N"] = out["tensions"]
@@ -86,7 +87,7 @@ def case_outputs(scene: Scene, values: Mapping[str, Any], outputs: tuple[str, ..
             res["spring_moment_Nm"] = drive.spring_moment(out["theta"], sc)
         res["converged"] = conv > 0.5
         if loaded:
-            need, margins = friction.arc_margins(sc, critical.span_forces(sc, qi, inst, v), inst.wrap)
+            need, margins = friction.arc_margins(sc, critical.span_forces(sc, qi, inst, v), out["wraps"])
             res["drive_torque_Nm"] = out["drive_torque"]
             res["friction_needed"] = need
             if margins.size:  # the arcs with a friction coefficient

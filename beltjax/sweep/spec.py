@@ -37,7 +37,7 @@ SPACINGS = ("linear", "log")
 #: case status codes (index = the integer code) and their meaning
 STATUS = ("ok", "unstable", "invalid_value", "belt_slack", "belt_overstretched", "no_arm_balance",
           "not_converged", "span_slack", "non_finite", "supercritical", "overlap", "no_belt_path",
-          "ill_conditioned", "transient_failed", "not_settled", "decoupler_overrun")
+          "ill_conditioned", "transient_failed", "not_settled", "decoupler_overrun", "arm_wound", "span_overstretched")
 
 REASONS = {
     "ok": "solved",
@@ -53,6 +53,10 @@ REASONS = {
     "no_arm_balance": "no tensioner arm angle balances the spring against the belt",
     "not_converged": "no static equilibrium found (Newton, also with speed stepping)",
     "span_slack": "a span would go slack (tension <= 0)",
+    "arm_wound": f"the mean loads would turn the tensioner arm more than {math.degrees(statics.MAX_ARM_SWING):g} deg "
+                 "from its installed angle (wound round: they overpower the belt)",
+    "span_overstretched": f"the mean loads would stretch a span beyond {100 * statics.MAX_INSTALL_STRAIN:g} % (they "
+                          "overpower the belt)",
     "decoupler_overrun": "a decoupled pulley's mean load drives its rotor ahead: the clutch overruns, no steady state",
     "non_finite": "non-finite outputs",
     "transient_failed": "the response's transient (Dopri8) did not reach the end of its cycle",
@@ -152,10 +156,10 @@ def _rpm_range(key: str, v) -> np.ndarray:
     msg = schema.problem(schema.FIELDS["drive.rpm"], b)
     if msg:
         raise SweepError(msg, f"{key}[1]")
-    n = math.ceil((b + step / 2 - a) / step)
-    if n > MAX_SPEEDS:
-        raise SweepError(f"gives {n} speeds, at most {MAX_SPEEDS} allowed", key)
-    return np.arange(a, b + step / 2, step)
+    try:
+        return validate.rpm_range(a, b, step, MAX_SPEEDS)
+    except ValueError as exc:
+        raise SweepError(str(exc), key) from None
 
 def _parse_grid(i: int, d: dict) -> GridAxis:
     key = f"grid[{i}]"
