@@ -21,7 +21,8 @@ class StaticResult:
     """Static state of a drive (SI units; route order); see :func:`analyse_statics`.
 
     span_names; span_tensions_N: mean axial force per span; span_lengths_m: between the model's
-    end nodes (points of the belt, carried along the rims by the pulleys and the arm);
+    end nodes (points of the belt, which the pulleys' turns slide along the span off the tangent
+    points: :func:`beltjax.drive.end_slides`);
     span_free_lengths_m: tangent to tangent (a real span's; ``length_note`` says when the hybrid
     model's end nodes sit far from the tangent points);
     belt_length_m: unstretched belt length; installation_tension_N; stretch;
@@ -335,6 +336,8 @@ def _arm_note(t, balances: list, installed: float) -> str | None:
         return None
     key = "arm_angle_deg" if t.arm_angle_deg is not None else "spring_preload_deg"
     others = ", ".join(f"{x:.4g}" for x in balances if abs(x - installed) > 0.5)
+    if not others:  # (balances closer than the scan's resolution tell apart: one balance)
+        return None
     return (f"the tensioner arm balances the installed belt at {len(balances)} angles: {installed:.4g} deg, taken "
             f"as nearest tensioner.{key} = {float(getattr(t, key)):.4g} deg, and {others} deg; give {key} near "
             "another to install the belt there")

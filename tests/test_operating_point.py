@@ -213,25 +213,26 @@ def test_operating_faults_in_closed_form():
     a span's strain over 2 % of its unstretched length, the arm turned over half a turn; a state
     that only turns a pulley stretches nothing."""
     sc = loads_scene(_tensioner())
-    inst = statics.install(sc)
+    inst = statics.install_compiled(sc)
+    faults, strains = jax.jit(statics.operating_faults), jax.jit(statics.operating_strains)
     qi = np.zeros(drive.n_independent(sc))
-    base = statics.operating_faults(sc, qi, inst)
+    base = faults(sc, qi, inst)
     assert not any(bool(v) for v in base.values())
-    assert float(np.max(np.abs(statics.operating_strains(sc, qi, inst) - (float(inst.stretch) - 1)))) < 1e-12
+    assert float(np.max(np.abs(strains(sc, qi, inst) - (float(inst.stretch) - 1)))) < 1e-12
     arm = [i for i in range(len(qi)) if float(drive.angles_and_arm(np.eye(len(qi))[i], sc, inst)[1] - inst.arm_angle) != 0]
     assert len(arm) == 1
     q = np.zeros(len(qi))
     q[arm[0]] = 1.01 * math.pi  # the arm turned just over half a turn (its spans stretch too)
-    assert bool(statics.operating_faults(sc, q, inst)["arm_wound"])
-    s0 = np.asarray(statics.operating_strains(sc, qi, inst))
-    per_rad = np.array([np.asarray(statics.operating_strains(sc, e, inst)) - s0 for e in np.eye(len(qi))])
+    assert bool(faults(sc, q, inst)["arm_wound"])
+    s0 = np.asarray(strains(sc, qi, inst))
+    per_rad = np.array([np.asarray(strains(sc, e, inst)) - s0 for e in np.eye(len(qi))])
     per_rad[arm[0]] = 0.0  # a pulley's turn slides the belt along its spans: linear in its angle
     k, j = np.unravel_index(np.argmax(per_rad), per_rad.shape)
     for strain, over in ((0.019, False), (0.021, True)):  # pulley k turned to stretch span j this far
         q = np.zeros(len(qi))
         q[k] = (strain - s0[j]) / per_rad[k, j]
-        assert float(statics.operating_strains(sc, q, inst)[j]) == pytest.approx(strain, rel=1e-9)
-        assert bool(statics.operating_faults(sc, q, inst)["span_overstretched"]) is over
+        assert float(strains(sc, q, inst)[j]) == pytest.approx(strain, rel=1e-9)
+        assert bool(faults(sc, q, inst)["span_overstretched"]) is over
 
 
 def test_a_loaded_drive_past_its_critical_speed_is_told_so_not_blamed_on_its_loads():
