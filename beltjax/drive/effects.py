@@ -64,18 +64,20 @@ class Effect(eqx.Module):
         out = []
         for key in self.parameters():
             group, attr = key.split(".")
+            field = attr  # the scene dataclass's field that holds the key's value
             if group == "belt":
                 owners = [("belt", scene.belt)]
             elif group == "pulley":
                 owners = [(f"pulley[{i}]", p) for i, p in enumerate(scene.pulleys)]
-            elif group == "fluctuation":  # order or frequency_hz, as the table gives it, is the field rate
+            elif group == "fluctuation":  # order or frequency_hz, whichever the table gives, is the field rate
+                field = "rate" if attr in ("order", "frequency_hz") else attr
                 owners = [(x.key or f"fluctuation[{i}]", x) for i, x in enumerate(scene.fluctuations)
-                          if attr not in ("order", "frequency_hz") or (attr == "order") == (x.per == "rev")]
+                          if field != "rate" or (attr == "order") == (x.per == "rev")]
             else:
                 owners = [(group, getattr(scene, group))] if getattr(scene, group) is not None else []
             for prefix, obj in owners:
-                v = getattr(obj, "rate" if group == "fluctuation" and attr in ("order", "frequency_hz") else attr)
-                default = _defaults(type(obj)).get(attr, 0.0)
+                v = getattr(obj, field)
+                default = _defaults(type(obj)).get(field, 0.0)
                 if v is not None and float(np.max(np.abs(np.asarray(v) - default))) > 0:
                     out.append(f"{prefix}.{attr}")
         return out

@@ -218,8 +218,8 @@ def span_lengths(qi, scene: Scene, inst: Installation):
 def free_lengths(qi, scene: Scene, inst: Installation):
     """The spans' free lengths (n,) m at q_i: tangent point to tangent point of the layout moved by
     the arm (what a real span's transverse modes see).  :func:`span_lengths` differs by the
-    rim slides and r dpsi: the model's end nodes are points of the belt, carried along the rims by
-    the pulleys' turns and the arm's swing."""
+    two ends' :func:`end_slides`: the model's end nodes are points of the belt, which the pulleys'
+    turns slide along the span off the tangent points."""
     _, theta = angles_and_arm(qi, scene, inst)
     centers, radii = _centers(theta, scene, inst)
     return _moved_tangents(centers, radii, scene, inst)[0].length

@@ -36,13 +36,14 @@ MAX_SETTLE_S = 100.0
 #: samples per excitation cycle accepted
 MIN_SAMPLES, MAX_SAMPLES = 16, 4096
 #: the status of a speed, worst first (overloaded: the mean loads would stretch a span past 2 % or
-#: wind the tensioner arm round, :func:`beltjax.statics.operating_faults`; span_slack: a span's force on the pulleys, its tension less
-#: rhoA c^2 lam with transport, fell to 0 or below in the cycle: the belt lifts off, no grip)
+#: wind the tensioner arm round, :func:`beltjax.statics.operating_faults`; span_slack: a span's
+#: force on the pulleys, its tension less rhoA c^2 lam with transport, fell to 0 or below in the
+#: cycle: the belt lifts off, no grip)
 STATUS = ("not_converged", "overloaded", "supercritical", "solver_failed", "span_slack", "not_settled", "ok")  # first cause first
 #: the statuses that flag a computed cycle, whose numbers are kept beside the flag (a span going slack
 #: in the cycle, a cycle not yet repeating); every other status but "ok" leaves no state to report
-#: (statics not converged, an overloaded operating point, one past a span's critical speed, a failed transient): its
-#: numbers are NaN.  The one policy of responses over speed and of sweeps (beltjax.sweep.batch).
+#: (statics not converged, an overloaded operating point, one past a span's critical speed, a
+#: failed transient): its numbers are NaN.  The one policy of responses over speed and of sweeps (beltjax.sweep.batch).
 FLAGS_KEEPING_NUMBERS = ("span_slack", "not_settled")
 
 
