@@ -243,12 +243,7 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
         th = float(out["theta"])
         res.tensioner_angle_deg = math.degrees(th)
         res.spring_moment_Nm = float(drive.spring_moment(th, scene))
-        k = order.index(TENSIONER)
-        pivot = hubs[k].copy()
-        if "gravity" in effects_of(scene):
-            t = scene.tensioner
-            pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
-        res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
+        res.tensioner_pivot_force_N = tensioner_pivot_force(scene, hubs)
         res.arm_on_stop = _arm_on_stop(scene.tensioner, res.tensioner_angle_deg, what)
         res.arm_balances_deg = _arm_balances(scene, np.degrees(np.asarray(out["arm_balances"])), float(inst.tension))
         res.arm_note = _arm_note(scene.tensioner, res.arm_balances_deg, math.degrees(float(inst.arm_angle)))
@@ -271,6 +266,17 @@ def _state(scene: Scene, v: float, loaded: bool, allow_supercritical: bool, chec
             res.decouplers[d.pulley] = {"windup_deg": math.degrees(w),
                                         "moment_Nm": float(couplings.decoupler_moment(w, d.stiffness))}
     return res
+
+
+def tensioner_pivot_force(scene: Scene, hubs) -> list[float]:
+    """The force (N, x and y) the tensioner's pivot bearing carries in a static state: the belt's
+    force on the idler (its row of ``hubs``, (n, 2) N in route order) plus, with gravity, the
+    weight of the arm and idler.  The one rule of ``statics.json`` and the optimiser's reports."""
+    f = np.array(hubs[scene.route.order.index(TENSIONER)], dtype=float)
+    if "gravity" in effects_of(scene):
+        t = scene.tensioner
+        f[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
+    return [float(f[0]), float(f[1])]
 
 
 def _check_operating(scene: Scene, out: dict, names: list[str], what: str) -> None:

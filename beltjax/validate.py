@@ -398,17 +398,35 @@ def speeds(values, key: str = "rpm", field: str = "drive.rpm") -> np.ndarray:
     return v
 
 
+class RangeError(ValueError):
+    """A speed range A:B:STEP that :func:`rpm_range` refuses; ``part``: 0, 1 or 2 for the value
+    at fault (A, B or STEP), None for the range as a whole (too many speeds)."""
+
+    def __init__(self, msg: str, part: int | None):
+        super().__init__(msg)
+        self.part = part
+
+
 def rpm_range(a: float, b: float, step: float, max_speeds: int) -> np.ndarray:
-    """The speeds (rpm) of a range A:B:STEP (finite, 0 <= A <= B, STEP > 0: checked by the
-    caller): A, A + STEP, ... up to B, and B itself, never beyond it (the last step shorter where
-    STEP does not divide B - A; an end within 1e-9 STEP of a grid point is that point).  The one
-    reading of ``--rpm`` and of a sweep's ``rpm``.  More than ``max_speeds`` speeds is a
-    ValueError saying how many (before any array is made)."""
+    """The speeds (rpm) of a range A:B:STEP: A, A + STEP, ... up to B, and B itself, never beyond
+    it (the last step shorter where STEP does not divide B - A; an end within 1e-9 STEP of a grid
+    point is that point).  The one reading of ``--rpm`` and of a sweep's ``rpm``: a value not
+    finite, STEP <= 0, A < 0, B < A or more than ``max_speeds`` speeds is a :class:`RangeError`
+    saying which (before any array is made); the callers name their own key."""
+    for i, (x, name) in enumerate(((a, "start A"), (b, "end B"), (step, "STEP"))):
+        if not math.isfinite(x):
+            raise RangeError(f"{name} must be finite, got {x!r}", i)
+    if step <= 0:
+        raise RangeError(f"STEP must be > 0, got {step!r}", 2)
+    if a < 0:
+        raise RangeError(f"start A must be >= 0, got {a!r}", 0)
+    if b < a:
+        raise RangeError(f"end B must be >= start A, got {b!r}", 1)
     k = math.floor((b - a) / step + 1e-9)  # whole steps from A to at most B
     on_grid = abs(b - (a + k * step)) <= 1e-9 * step
     n = k + 1 + (not on_grid)
     if n > max_speeds:
-        raise ValueError(f"gives {n} speeds, at most {max_speeds} allowed")
+        raise RangeError(f"gives {n} speeds, at most {max_speeds} allowed", None)
     r = a + step * np.arange(k + 1, dtype=float)
     return np.append(r[:-1] if on_grid else r, b)
 

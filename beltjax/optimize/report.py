@@ -10,8 +10,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from beltjax import drive, drive_modal, modal, statics
-from beltjax.scene import TENSIONER, Scene
+from beltjax import drive, drive_modal, modal, static_state, statics
+from beltjax.scene import Scene
 from beltjax.optimize.goal import overlaps
 from beltjax.optimize.loss import (WATCHED, _compiled, _loss_key, _measures_jit, _violations, band_need,
                                    band_weights, problem_masks, terms_from_measures)
@@ -152,11 +152,7 @@ def _static_result(scene: Scene, m: dict) -> statics.StaticResult:
         th = float(m["arm_deg"])
         res.tensioner_angle_deg = th
         res.spring_moment_Nm = float(drive.spring_moment(math.radians(th), scene))
-        pivot = hub[order.index(TENSIONER)].copy()
-        if "gravity" in effects_of(scene):
-            t = scene.tensioner
-            pivot[1] += drive.GRAVITY[1] * float(t.arm_mass + t.pulley_mass)
-        res.tensioner_pivot_force_N = [float(pivot[0]), float(pivot[1])]
+        res.tensioner_pivot_force_N = static_state.tensioner_pivot_force(scene, hub)
     return res
 
 

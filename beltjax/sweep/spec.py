@@ -147,19 +147,13 @@ def _rpm_range(key: str, v) -> np.ndarray:
     if not isinstance(v, list) or len(v) != 3:
         raise SweepError(f"expected [A, B, STEP] (three numbers, rpm), got {describe(v)}", key)
     a, b, step = (_READ.number(f"{key}[{i}]", x) for i, x in enumerate(v))
-    if step <= 0:
-        raise SweepError(f"STEP must be > 0, got {v[2]!r}", f"{key}[2]")
-    if a < 0:
-        raise SweepError(f"start A must be >= 0, got {v[0]!r}", f"{key}[0]")
-    if b < a:
-        raise SweepError(f"end B must be >= start A, got {v[1]!r}", f"{key}[1]")
     msg = schema.problem(schema.FIELDS["drive.rpm"], b)
     if msg:
         raise SweepError(msg, f"{key}[1]")
     try:
         return validate.rpm_range(a, b, step, MAX_SPEEDS)
-    except ValueError as exc:
-        raise SweepError(str(exc), key) from None
+    except validate.RangeError as exc:
+        raise SweepError(str(exc), key if exc.part is None else f"{key}[{exc.part}]") from None
 
 def _parse_grid(i: int, d: dict) -> GridAxis:
     key = f"grid[{i}]"
