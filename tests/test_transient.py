@@ -181,6 +181,35 @@ def test_newton_failure_is_reported():
     assert sol.result != diffrax.RESULTS.successful
 
 
+def _hardening(t, y, args):
+    """x'' = -k (1 + 100 x^2) x - c x', k = 1e4 1/s^2: the Newton matrix changes 100x over a swing."""
+    return jnp.stack([y[1], -1e4 * (1.0 + 100.0 * y[0] ** 2) * y[0] - 2.0 * y[1]])
+
+
+def test_kept_newton_factors_are_formed_afresh_where_they_fail():
+    """GeneralizedAlpha with kept Newton factors (never refreshed on schedule: jacobian_every 1e6,
+    3 simplified-Newton iterations) on a hardening oscillator, whose Newton matrix changes 100x
+    over a swing: the factors kept from the start fail and the step is redone with fresh ones
+    (the final state's age, steps since the last fresh factors, is then below the step count);
+    every step then lands on the root the solver with fresh factors at every step finds, to
+    the Newton tolerance, and neither run fails."""
+    h, n = 2e-4, 400
+    runs = {}
+    for every in (1, 10**6):
+        solver = GeneralizedAlpha(rho_inf=0.9, full_newton=False, jacobian_every=every, newton_iterations=3)
+        sol = diffrax.diffeqsolve(
+            diffrax.ODETerm(_hardening), solver, 0.0, h * n, h, jnp.array([0.5, 0.0]),
+            stepsize_controller=diffrax.ConstantStepSize(), saveat=diffrax.SaveAt(ts=h * jnp.arange(n + 1), solver_state=True),
+            max_steps=n + 4, throw=False,
+        )
+        assert sol.result == diffrax.RESULTS.successful, every
+        runs[every] = sol
+    age = int(runs[10**6].solver_state[2])
+    assert 1 <= age < n - 1
+    x1, x2 = np.asarray(runs[1].ys), np.asarray(runs[10**6].ys)
+    assert np.max(np.abs(x1 - x2) / np.max(np.abs(x1), axis=0)) < 1e-8
+
+
 def test_simulate_span_raises_on_failure(strip, small):
     """simulate_span raises instead of returning a partial answer (here: a NaN initial velocity).
 
