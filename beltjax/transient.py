@@ -215,14 +215,9 @@ def solver_of(scene: Scene, dtmax=None):
 
 
 def _start_states(term, solver, controller, y0, t0, dt0):
-    """(solver state, controller state, made_jump) at the start of a run (t0 s, first step
-    dt0 s); :func:`_solve_chunk` carries them on.  The solver's state is zeros of the shape
-    ``solver.init`` gives, with made_jump True: the first step then evaluates what the state
-    holds (a Runge-Kutta pair's first stage; the generalized-alpha step's rates and Newton
-    factors) at t0, as after a jump, so the start's program holds no vector field (measured on
-    the hybrid three-pulley drive: its compilation fell from 12 s to ~0.1 s, the run unchanged).
-    Arrays throughout (diffrax's PID state holds a Python bool, which a jitted chunk function
-    would take as static and compile for again at the second chunk)."""
+    """(solver state, controller state, made_jump) at a run's start (t0, first step dt0, s): zeros and
+    made_jump True, so the first step evaluates the state at t0 and this program holds no vector field
+    (12 s -> 0.1 s of compile, hybrid drive); arrays (a Python bool would recompile the second chunk)."""
     _, c_state = controller.init(term, t0, t0 + dt0, y0, dt0, None, solver.func, solver.error_order(term))
     shapes = jax.eval_shape(lambda y: solver.init(term, t0, t0 + dt0, y, None), y0)
     s_state = jax.tree_util.tree_map(lambda x: jnp.zeros(x.shape, x.dtype), shapes)
