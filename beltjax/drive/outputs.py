@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, element_length
 from beltjax.drive.spans import spans_of, tension_profile as span_tension_profile  # noqa: F401
 from beltjax.drive.kinematics import split_full
-from beltjax.drive.forces import span_forces
+from beltjax.drive.effects import effects_of
 from beltjax.drive.equations import transport_speed
 
 
@@ -26,13 +27,11 @@ def hub_forces(q, scene: Scene, inst: Installation, speed=0.0):
     and weight as listed); the hub force sums both spans touching the pulley.
     """
     E, _ = split_full(q, scene)
-    n = E.shape[0]
     c = transport_speed(scene, inst, speed)
-    out = jnp.zeros((n, 2), dtype=q.dtype)
-    for s in range(n):
-        f = span_forces(E[s], jnp.zeros_like(E[s]), s, scene, inst, c)
-        out = out.at[s].add(f[:2]).at[(s + 1) % n].add(f[-4:-2])
-    return out
+    model, Le, fx = spans_of(scene), element_length(scene, inst), effects_of(scene)
+    # one span's forces mapped over the spans: the program holds them once, not once per span
+    f = jax.vmap(lambda e, le: model.forces(e, jnp.zeros_like(e), scene.belt, le, c, 0.0, fx))(E, Le)
+    return f[:, :2] + jnp.roll(f[:, -4:-2], 1, axis=0)  # pulley k: the start of span k, the end of span k - 1
 
 
 def full_span_lengths(q, scene: Scene):

@@ -161,7 +161,7 @@ class AncfSpans(SpanModel):
         return f if extra is None else f + extra
 
     def tensions(self, E, EA, Le):
-        return jnp.stack([jnp.mean(tension_profile(E[s], EA, Le[s], self.n_elements)) for s in range(E.shape[0])])
+        return jax.vmap(lambda e, le: jnp.mean(tension_profile(e, EA, le, self.n_elements)))(E, Le)
 
     def accelerations(self, qi, qi_dot, scene, inst, rm, t=None, speed=0.0, slip=None, Q=None):
         from beltjax.drive.equations import schur_accelerations
