@@ -292,8 +292,8 @@ class GeneralizedAlpha(diffrax.AbstractSolver):
                 stale = (age >= every) | jnp.asarray(made_jump)
 
                 def attempt(carry):
-                    """One Newton iteration: with the kept factors at the first attempt (unless
-                    stale), with fresh ones at the second."""
+                    """One Newton solve of the step: with the kept factors at the first attempt
+                    (unless stale), with fresh ones at the second."""
                     k, _, _, _, kept, _ = carry
                     fresh = stale | (k > 0)
                     factors = jax.lax.cond(fresh, lambda: factor(a0), lambda: kept)

@@ -61,7 +61,8 @@ def span_potential(e, s: int, scene: Scene, inst: Installation, c=0.0):
 
 
 def span_forces(e, e_dot, s: int, scene: Scene, inst: Installation, c=0.0, c_dot=0.0, dissipative=False):
-    """Forces on the coordinates of span ``s`` (N): elastic, plus the listed effects.
+    """Forces on the coordinates of span ``s`` (N; ``s`` an int or a traced index, to map over
+    the spans): elastic, plus the listed effects.
 
     e, e_dot: the span's coordinates and rates; c: transport speed (m/s of
     unstretched belt), c_dot its rate (m/s^2).  ``transport`` adds the

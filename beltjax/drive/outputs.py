@@ -9,7 +9,7 @@ from beltjax.scene import Scene
 from beltjax.drive.topology import Installation, element_length
 from beltjax.drive.spans import spans_of, tension_profile as span_tension_profile  # noqa: F401
 from beltjax.drive.kinematics import split_full
-from beltjax.drive.effects import effects_of
+from beltjax.drive.forces import span_forces
 from beltjax.drive.equations import transport_speed
 
 
@@ -28,9 +28,8 @@ def hub_forces(q, scene: Scene, inst: Installation, speed=0.0):
     """
     E, _ = split_full(q, scene)
     c = transport_speed(scene, inst, speed)
-    model, Le, fx = spans_of(scene), element_length(scene, inst), effects_of(scene)
-    # one span's forces mapped over the spans: the program holds them once, not once per span
-    f = jax.vmap(lambda e, le: model.forces(e, jnp.zeros_like(e), scene.belt, le, c, 0.0, fx))(E, Le)
+    # one span's forces mapped over the span index: the program holds them once, not once per span
+    f = jax.vmap(lambda e, s: span_forces(e, jnp.zeros_like(e), s, scene, inst, c))(E, jnp.arange(E.shape[0]))
     return f[:, :2] + jnp.roll(f[:, -4:-2], 1, axis=0)  # pulley k: the start of span k, the end of span k - 1
 
 
